@@ -1,0 +1,299 @@
+"""Reading and writing scalar time series, and atomic output directories.
+
+Formats: ``.npy`` (1-D, or 2-D with one column per channel), text
+(``.csv``, ``.txt``, ``.dat``, ``.tsv`` or no suffix: TISEAN style, whitespace
+or comma/semicolon/tab separated, ``#`` comments, optional header line) and
+``.parquet`` (through pandas/pyarrow).  Every failure raises a
+``ValueError``/``TypeError``/``FileNotFoundError`` whose one-line message says
+what to fix, so the command line can report it and exit with status 2.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import tempfile
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ._atomic import atomic_path
+from ._checks import check_series
+
+__all__ = ["read_table", "read_series", "write_series", "check_output_directory", "atomic_directory"]
+
+_TEXT_SUFFIXES = {".csv", ".txt", ".dat", ".tsv", ".asc", ""}
+_NUMBER = re.compile(r"^[+-]?(\d+\.?\d*([eE][+-]?\d+)?|\.\d+([eE][+-]?\d+)?|nan|inf|infinity)$",
+                     re.IGNORECASE)
+
+
+def _first_data_lines(path, n=5):
+    lines = []
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        for raw in fh:
+            line = raw.split("#", 1)[0].strip()
+            if line:
+                lines.append(line)
+                if len(lines) >= n:
+                    break
+    return lines
+
+
+def _delimiter(line):
+    for sep in (",", ";", "\t"):
+        if sep in line:
+            return sep
+    return r"\s+"
+
+
+def _read_text(path):
+    try:
+        lines = _first_data_lines(path)
+    except UnicodeDecodeError as exc:  # pragma: no cover - errors="replace" above
+        raise ValueError(f"{path} is not a text file; save the series as .npy, .csv or .txt.") from exc
+    if not lines:
+        raise ValueError(f"{path} holds no data (empty or only '#' comments); "
+                         "write one sample per line (one column per channel).")
+    sep = _delimiter(lines[0])
+    splitter = re.compile(sep) if sep == r"\s+" else None
+    first = splitter.split(lines[0]) if splitter else [t.strip() for t in lines[0].split(sep)]
+    header = 0 if not all(_NUMBER.match(tok) for tok in first if tok != "") else None
+    try:
+        frame = pd.read_csv(path, sep=sep, comment="#", header=header, skip_blank_lines=True,
+                            engine="c" if sep != ";" else "python", skipinitialspace=True)
+    except (pd.errors.ParserError, ValueError) as exc:
+        msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
+        raise ValueError(f"cannot parse {path} as a table ({msg}); every line needs the same "
+                         "number of columns, separated by spaces, commas or tabs.") from exc
+    if header is None:
+        frame.columns = list(range(frame.shape[1]))
+    else:
+        frame.columns = [str(c).strip() for c in frame.columns]
+    return frame
+
+
+def read_table(path):
+    """Read a file of one or more time-series columns into a DataFrame.
+
+    Parameters
+    ----------
+    path : str or path-like
+        ``.npy``, ``.parquet`` or a text file (``.csv``, ``.txt``, ``.dat``, ...).
+        Text files may use spaces, commas, semicolons or tabs as separators,
+        ``#`` starts a comment, and a first line that is not numeric is read
+        as the column names.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One column per channel; columns are named from the header (text,
+        parquet) or numbered ``0, 1, ...`` (``.npy``, text without header).
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> from skdelay._io import read_table
+    >>> path = os.path.join(tempfile.mkdtemp(), "x.csv")
+    >>> _ = open(path, "w").write("# laser\\nt,intensity\\n0,1.5\\n1,2.5\\n2,0.5\\n")
+    >>> read_table(path).columns.tolist()
+    ['t', 'intensity']
+    """
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"{path} does not exist; check the file name.")
+    if path.is_dir():
+        raise ValueError(f"{path} is a directory; pass the data file inside it.")
+    if path.stat().st_size == 0:
+        raise ValueError(f"{path} is empty; pass a file with one sample per line.")
+    suffix = path.suffix.lower()
+    if suffix == ".npy":
+        try:
+            arr = np.load(path, allow_pickle=False)
+        except (ValueError, OSError, EOFError) as exc:
+            raise ValueError(f"{path} is not a valid .npy file ({exc}); "
+                             "save it with numpy.save.") from exc
+        if arr.ndim == 1:
+            arr = arr[:, None]
+        if arr.ndim != 2:
+            raise ValueError(f"{path} holds an array of shape {arr.shape}; save a 1-D series "
+                             "or a 2-D array with one column per channel.")
+        return pd.DataFrame(arr)
+    if suffix == ".parquet":
+        try:
+            return pd.read_parquet(path)
+        except ImportError as exc:
+            raise ValueError("reading .parquet needs pyarrow; run `pip install pyarrow` "
+                             "or convert the file to .csv/.npy.") from exc
+        except Exception as exc:
+            raise ValueError(f"{path} is not a readable parquet file ({type(exc).__name__}); "
+                             "check the file or convert it to .csv/.npy.") from exc
+    if suffix in _TEXT_SUFFIXES:
+        return _read_text(path)
+    raise ValueError(f"unsupported file type {suffix!r} for {path}; use .npy, .csv, .txt, "
+                     ".dat or .parquet.")
+
+
+def _pick_column(frame, column, path):
+    names = list(frame.columns)
+    if column is None:
+        if len(names) == 1:
+            return names[0]
+        shown = ", ".join(repr(str(c)) for c in names[:8]) + (", ..." if len(names) > 8 else "")
+        raise ValueError(f"{path} has {len(names)} columns ({shown}); choose one with "
+                         "--column NAME or --column INDEX (0-based).")
+    key = str(column).strip()
+    for name in names:
+        if str(name) == key:
+            return name
+    if re.fullmatch(r"-?\d+", key):
+        idx = int(key)
+        if -len(names) <= idx < len(names):
+            return names[idx]
+        raise ValueError(f"column index {idx} is out of range: {path} has {len(names)} "
+                         f"column(s), indices 0..{len(names) - 1}.")
+    shown = ", ".join(repr(str(c)) for c in names[:8])
+    raise ValueError(f"no column {key!r} in {path}; available columns: {shown} "
+                     "(or a 0-based index).")
+
+
+def read_series(path, column=None, *, min_length=2):
+    """Read one scalar time series from a file and check it.
+
+    Parameters
+    ----------
+    path : str or path-like
+        See :func:`read_table` for the formats.
+    column : str or int, optional
+        Column name or 0-based index; required when the file has several
+        columns.
+    min_length : int, default=2
+        Minimum number of samples.
+
+    Returns
+    -------
+    pandas.Series
+        float64 values, named after the column.
+
+    Raises
+    ------
+    ValueError
+        Empty or unparsable file, non-numeric values, NaN/inf, a constant
+        or too short series, an unknown column.
+
+    Examples
+    --------
+    >>> import numpy as np, tempfile, os
+    >>> from skdelay._io import read_series
+    >>> path = os.path.join(tempfile.mkdtemp(), "x.npy")
+    >>> np.save(path, np.sin(np.arange(100.0)))
+    >>> read_series(path).shape
+    (100,)
+    """
+    frame = read_table(path)
+    if frame.shape[0] == 0:
+        raise ValueError(f"{path} has a header line but no data rows; "
+                         "write one sample per line below it.")
+    name = _pick_column(frame, column, path)
+    col = frame[name]
+    if col.dtype == object or pd.api.types.is_string_dtype(col.dtype):
+        numeric = pd.to_numeric(col, errors="coerce")
+        bad = np.flatnonzero(numeric.isna().to_numpy() & col.notna().to_numpy())
+        if bad.size:
+            raise ValueError(f"column {name!r} of {path} holds non-numeric values "
+                             f"(first: {col.iloc[bad[0]]!r} in data row {bad[0]}); "
+                             "pass a file of numbers only (a header line is fine).")
+        col = numeric
+    try:
+        values = check_series(col.to_numpy(), name=f"column {name!r} of {Path(path).name}",
+                              min_length=min_length)
+    except (ValueError, TypeError) as exc:
+        raise type(exc)(str(exc).replace("\n", " ")) from exc
+    return pd.Series(values, name=str(name))
+
+
+def write_series(path, values, *, name="x", comment=None):
+    """Write a 1-D series atomically as ``.npy`` or text (``.csv`` with header, else plain).
+
+    Examples
+    --------
+    >>> import numpy as np, tempfile, os
+    >>> from skdelay._io import write_series, read_series
+    >>> path = os.path.join(tempfile.mkdtemp(), "x.csv")
+    >>> _ = write_series(path, np.arange(5.0))
+    >>> read_series(path).tolist()
+    [0.0, 1.0, 2.0, 3.0, 4.0]
+    """
+    path = Path(path)
+    values = np.asarray(values, dtype=float).reshape(-1)
+    suffix = path.suffix.lower()
+    if suffix not in {".npy"} | (_TEXT_SUFFIXES - {""}):
+        raise ValueError(f"cannot write {suffix or 'a file without suffix'!r}; name the output "
+                         "*.npy, *.csv or *.txt.")
+    with atomic_path(path) as tmp:
+        if suffix == ".npy":
+            with open(tmp, "wb") as fh:
+                np.save(fh, values)
+        else:
+            lines = [f"# {line}" for line in (comment or "").splitlines() if line]
+            if suffix == ".csv":
+                lines.append(name)
+            body = "\n".join(lines + [""]) if lines else ""
+            with open(tmp, "w", encoding="utf-8") as fh:
+                fh.write(body)
+                np.savetxt(fh, values, fmt="%.10g")
+    return path
+
+
+def check_output_directory(path, *, force=False):
+    """Raise ``ValueError`` if ``path`` exists, is not empty and ``force`` is off."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise ValueError(f"{path} exists and is not a directory; choose another --out.")
+    if path.is_dir() and any(path.iterdir()) and not force:
+        raise ValueError(f"output directory {path} already exists and is not empty; "
+                         "choose another --out or pass --force to replace it.")
+    return path
+
+
+@contextmanager
+def atomic_directory(path, *, force=False):
+    """Fill a temporary directory next to ``path``, then swap it into place.
+
+    A reader sees either the old directory or the complete new one; on any
+    error the temporary directory is removed and ``path`` is left untouched.
+    An existing non-empty ``path`` is only replaced when ``force`` is true.
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> from skdelay._io import atomic_directory
+    >>> out = os.path.join(tempfile.mkdtemp(), "report")
+    >>> with atomic_directory(out) as tmp:
+    ...     _ = (tmp / "a.txt").write_text("done")
+    >>> sorted(os.listdir(out))
+    ['a.txt']
+    """
+    path = Path(path)
+    check_output_directory(path, force=force)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
+    try:
+        yield tmp
+        os.chmod(tmp, 0o755)
+        if path.exists():
+            old = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".old", dir=path.parent))
+            os.replace(path, old / "d")
+            try:
+                os.replace(tmp, path)
+            except BaseException:
+                os.replace(old / "d", path)
+                raise
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(tmp, path)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise

@@ -1,0 +1,274 @@
+"""HTML reports of :func:`skdelay._analysis.analyze_series` and of the demo.
+
+Self-contained pages (figures inlined as PNG, see :mod:`skdelay._html`):
+forecast-error curves, correlation revivals, Lyapunov spectra, histograms
+and power spectra of data vs model runs, space-time plots, the tables and,
+for the demo, the paper's table and the rescaled-spectrum collapse.
+"""
+
+from __future__ import annotations
+
+import html
+
+import numpy as np
+import pandas as pd
+
+from ._html import write_html
+
+__all__ = ["analysis_sections", "write_analysis_report", "write_demo_report"]
+
+_COLORS = {1: "#8c564b", 2: "#1f77b4", 3: "#ff7f0e", 4: "#2ca02c", 5: "#d62728", 6: "#9467bd"}
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _color(m):
+    return _COLORS.get(int(m), None)
+
+
+def _close(fig):
+    _plt().close(fig)
+
+
+# --------------------------------------------------------------------------------- figures
+def fig_forecast_error(result):
+    """sigma_m(tau) for every m with the dip centre and half-width shaded."""
+    from .plotting import plot_forecast_error
+
+    fig = plot_forecast_error(result.forecast_error, logy=True)
+    fig.set_size_inches(7.5, 4)
+    ax = fig.axes[0]
+    for line, m in zip(ax.lines, result.forecast_error.columns):
+        row = result.delays.loc[m]
+        ax.axvspan(row["delay"] - row["half_width"], row["delay"] + row["half_width"],
+                   color=line.get_color(), alpha=0.1)
+    ax.set_title("one-step forecast error (shaded: estimated delay +- half width)")
+    return fig
+
+
+def fig_correlations(result):
+    """Autocorrelation and mutual information with their revivals and the delay."""
+    plt = _plt()
+    fig, axes = plt.subplots(1, 2, figsize=(9, 3.2), layout="constrained")
+    rev = result.revivals
+    for ax, key, label in ((axes[0], "acf", "autocorrelation"),
+                           (axes[1], "mi", "mutual information [nats]")):
+        curve = rev[key]
+        ax.plot(np.arange(curve.size), curve, lw=1, color="#345")
+        ax.axvline(result.delay, color="#d62728", lw=1, ls="--", label=f"delay {result.delay}")
+        peak = rev.get(f"{key}_revival")
+        if peak is not None:
+            ax.axvline(peak, color="#888", lw=1, ls=":", label=f"first revival {peak}")
+        ax.set_xlabel("lag [samples]")
+        ax.set_ylabel(label)
+        ax.legend(fontsize=8)
+    return fig
+
+
+def fig_spectra(result, scale=1.0, unit="1/time unit"):
+    """Lyapunov spectra of the models of every m."""
+    from .plotting import plot_lyapunov_spectrum
+
+    fig = plot_lyapunov_spectrum({f"m = {m}": spec.exponents * scale
+                                  for m, spec in result.spectra.items()})
+    fig.set_size_inches(7.5, 4)
+    ax = fig.axes[0]
+    ax.set_ylabel(f"lambda_i [{unit}]")
+    ax.set_title("Lyapunov spectra of the fitted models")
+    return fig
+
+
+def _runs(result):
+    return {f"model m = {m}": run for m, run in result.runs.items()
+            if run.size >= 100 and np.ptp(run) > 0}
+
+
+def fig_distributions(result, sample_dt):
+    """Histograms and power spectra: data against the free runs of the models."""
+    from .plotting import plot_histograms, plot_power_spectra
+
+    plt = _plt()
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 3.8), layout="constrained")
+    series = {"data": result.series, **_runs(result)}
+    plot_histograms(series, bins=60, ax=ax1)
+    plot_power_spectra(series, sample_dt=sample_dt, ax=ax2)
+    ax1.set_title("histogram (invariant measure)")
+    ax2.set_title("power spectrum")
+    for ax in (ax1, ax2):
+        ax.legend(fontsize=7)
+        if ax.lines:
+            ax.lines[0].set_color("k")
+            ax.lines[0].set_linewidth(2)
+    return fig
+
+
+def fig_series(result, sample_dt):
+    """A stretch of the data above the same length of the model run."""
+    plt = _plt()
+    m = result.m
+    run = result.runs.get(m, np.empty(0))
+    length = int(min(result.series.size, max(500, 6 * result.delay)))
+    fig, axes = plt.subplots(2, 1, figsize=(10, 3.8), sharex=True, sharey=True,
+                             layout="constrained")
+    t = np.arange(length) * sample_dt
+    axes[0].plot(t, result.series[:length], "k-", lw=0.6)
+    axes[0].set_ylabel("data")
+    if run.size:
+        axes[1].plot(t[: min(length, run.size)], run[:length], "-", lw=0.6, color=_color(m))
+    axes[1].set_ylabel(f"model m = {m}")
+    axes[1].set_xlabel("time")
+    return fig
+
+
+def fig_space_time(result):
+    """Space-time representation of data and model run at the best period."""
+    from .plotting import plot_space_time
+    from .spacetime import best_space_time_period
+
+    plt = _plt()
+    d = result.delay
+    candidates = np.arange(max(2, d - 5), d + 15.5, 0.5)
+    period, _ = best_space_time_period(result.series[: 60 * (d + 20)], candidates)
+    run = result.runs.get(result.m, np.empty(0))
+    panels = [("data", result.series)]
+    if run.size > 4 * period:
+        panels.append((f"model m = {result.m}", run))
+    fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 4), squeeze=False,
+                             layout="constrained")
+    for ax, (label, x) in zip(axes[0], panels):
+        plot_space_time(x[: int(min(x.size, 120 * period))], period, ax=ax)
+        ax.set_title(f"{label} (period {period:g} samples)")
+    return fig
+
+
+# ----------------------------------------------------------------------------------- pages
+def _row_table(result, scale=1.0, unit="1/time unit"):
+    r = result.summary_row()
+    table = pd.DataFrame({
+        "delay [samples]": [f"{r['delay']} +- {r['delay_error']:.1f}"],
+        "delay [time]": [r["delay_time"]],
+        "m": [r["m"]],
+        "N positive": [r["N"]],
+        f"lambda_max [{unit}]": [r["lambda_max"] * scale],
+        "Kaplan-Yorke D_KY": [r["D_KY"]],
+        f"h_KS [{unit}]": [r["h_KS"] * scale],
+        f"D_KY/tau [{unit}]": [r["D_KY/tau"] * scale],
+        "minimal faithful m": ["none" if r["minimal_m"] is None else r["minimal_m"]],
+    })
+    return table.set_index("delay [samples]")
+
+
+def _safe(fn, *args):
+    """A figure, or a short note when it cannot be drawn (the report is still written)."""
+    try:
+        return fn(*args)
+    except Exception as exc:  # noqa: BLE001 - one figure must not sink the report
+        return f"<p><em>figure not available: {html.escape(str(exc))}</em></p>"
+
+
+def analysis_sections(result, *, scale=1.0, unit="1/time unit", prefix=""):
+    """Report sections (heading, items) of one analysis."""
+    dt = result.sample_dt
+    delays = result.delays.rename(columns={"delay": "dip centre", "half_width": "half width",
+                                           "tau_min": "grid minimum", "tau_used": "model tau"})
+    val = result.validation.copy()
+    rev = result.revivals
+    intro = (
+        f"<p>{html.escape(result.name)}: {result.series.size} samples, sampling interval "
+        f"{dt:g}. Delays in samples; exponents per {html.escape(unit.split('/', 1)[-1])}. "
+        f"First revival of the autocorrelation: {rev.get('acf_revival')}, of the mutual "
+        f"information: {rev.get('mi_revival')} (they lie beyond the delay by the response "
+        "time).</p>"
+    )
+    items = [
+        (f"{prefix}Summary", [intro, _row_table(result, scale, unit)]),
+        (f"{prefix}Delay: one-step forecast error",
+         [_safe(fig_forecast_error, result), delays, _safe(fig_correlations, result)]),
+        (f"{prefix}Lyapunov spectra, Kaplan-Yorke dimension, KS entropy",
+         [_safe(fig_spectra, result, scale, unit)]),
+        (f"{prefix}Validation of the iterated models",
+         ["<p>Free runs of each model against the data. A model is faithful when it stays "
+          "bounded and its histogram, power spectrum, cross-prediction error and Lyapunov "
+          "spectrum agree with the data within the data's own sampling spread "
+          "(see <code>skdelay.dynamics.minimal_embedding</code>).</p>",
+          _safe(fig_series, result, dt), _safe(fig_distributions, result, dt), val,
+          _safe(fig_space_time, result)]),
+    ]
+    return items
+
+
+def _close_all(sections):
+    for _, items in sections:
+        for item in items if isinstance(items, list) else [items]:
+            if hasattr(item, "savefig"):
+                _close(item)
+
+
+def write_analysis_report(result, path):
+    """Write the self-contained HTML report of one analysis."""
+    sections = analysis_sections(result)
+    try:
+        return write_html(path, f"skdelay analysis - {result.name}", sections)
+    finally:
+        _close_all(sections)
+
+
+def fig_collapse(demo):
+    """Rescaled spectra lambda_i tau vs i / tau of every delay (and the exact ones)."""
+    from .plotting import plot_lyapunov_spectrum
+
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(7.5, 4.5), layout="constrained")
+    spectra, taus = {}, {}
+    for delay, res in demo.results.items():
+        label = f"tau0 = {delay}: model m = {res.m}"
+        spectra[label], taus[label] = res.spectrum, res.delay * res.sample_dt
+    plot_lyapunov_spectrum(spectra, tau=taus, rescaled=True, ax=ax)
+    colors = {lab.split(":")[0]: line.get_color() for line in ax.lines
+              if (lab := line.get_label()) in spectra}
+    exact, exact_tau = {}, {}
+    for delay, res in demo.results.items():
+        if delay in demo.exact:
+            exact[f"tau0 = {delay}: exact"] = demo.exact[delay]
+            exact_tau[f"tau0 = {delay}: exact"] = res.delay * res.sample_dt
+    if exact:
+        plot_lyapunov_spectrum(exact, tau=exact_tau, rescaled=True, ax=ax)
+        for line in ax.lines:
+            lab = line.get_label()
+            if lab in exact:
+                line.set_color(colors.get(lab.split(":")[0], "k"))
+                line.set_marker("")
+                line.set_linestyle("--")
+    ax.legend(fontsize=7)
+    ax.set_title("rescaled Lyapunov spectra: lambda_i tau against i / tau")
+    return fig
+
+
+def write_demo_report(demo, path):
+    """Write the demo's report: the paper's table, the collapse, then every analysis."""
+    from ._analysis import PAPER_TABLE
+
+    table = demo.table.copy()
+    sections = [
+        ("The paper's table on the laser-like data",
+         [f"<p>Exponents and entropies in {html.escape(demo.unit)}; <em>exact</em> columns: "
+          "the simulator's own spectrum (tangent dynamics of the delay equation) with the "
+          "same number of exponents. m_d: minimal faithful window length.</p>", table,
+          "<p>For comparison, Bünner et al. (CO<sub>2</sub> laser experiment, 1/ms):</p>",
+          PAPER_TABLE]),
+        ("Rescaled-spectrum collapse", [_safe(fig_collapse, demo)]),
+    ]
+    for delay, res in demo.results.items():
+        sections += analysis_sections(res, scale=demo.scale, unit=demo.unit,
+                                      prefix=f"tau0 = {delay}: ")
+    try:
+        return write_html(path, "skdelay demo - delayed-feedback laser", sections)
+    finally:
+        _close_all(sections)

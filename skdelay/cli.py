@@ -1,0 +1,456 @@
+"""The ``skdelay`` command: analyze, demo, gap and simulate.
+
+A thin shell over :func:`skdelay._analysis.analyze_series`,
+:func:`skdelay._analysis.run_demo`, :func:`skdelay.gap.diagnose_gap` and the
+simulators.  Each subcommand first *prepares* (parses the arguments, reads and
+checks the input, checks the output path) and then *runs*; a problem found
+while preparing is a usage/input error (exit status 2), one while running is
+a failure (exit status 1).  Either way a single line on stderr says what to
+fix, and nothing is written: outputs are built in a temporary file or
+directory next to the target and renamed into place at the end.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import re
+import sys
+import time
+from pathlib import Path
+
+EXIT_OK, EXIT_FAILURE, EXIT_USAGE = 0, 1, 2
+
+
+class UsageError(ValueError):
+    """Bad command-line usage or input (exit status 2)."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """ArgumentParser whose errors are one line on stderr and exit status 2."""
+
+    def error(self, message):
+        raise UsageError(f"{message} (see `{self.prog} --help`)")
+
+
+def _one_line(exc):
+    if isinstance(exc, KeyError) and exc.args:
+        text = str(exc.args[0])
+    else:
+        text = str(exc) or type(exc).__name__
+    return " ".join(text.split())
+
+
+# --------------------------------------------------------------------- parsing helpers
+def _positive_float(text):
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return value
+
+
+def _nonneg_float(text):
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}") from None
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}")
+    return value
+
+
+def _int_at_least(minimum):
+    def parse(text):
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"expected an integer >= {minimum}, got {value}")
+        return value
+
+    return parse
+
+
+def parse_m(text):
+    """Parse an embedding-window list: ``"3"``, ``"2,4"`` or ``"2..5"`` -> tuple of ints."""
+    text = str(text).strip()
+    match = re.fullmatch(r"(\d+)\s*(?:\.\.|-|:)\s*(\d+)", text)
+    try:
+        if match:
+            lo, hi = int(match.group(1)), int(match.group(2))
+            values = tuple(range(lo, hi + 1))
+        else:
+            values = tuple(int(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"--m expects a window length like 3, a list 2,3,5 or a range 2..5; got {text!r}"
+        ) from None
+    if not values or min(values) < 1 or max(values) > 20:
+        raise argparse.ArgumentTypeError(
+            f"--m needs window lengths between 1 and 20 (e.g. 2..5); got {text!r}"
+        )
+    return tuple(sorted(set(values)))
+
+
+def parse_params(items):
+    """Parse ``k=v`` pairs: a number, or ``start:end`` for a linear drift."""
+    params = {}
+    for item in items or ():
+        key, sep, value = item.partition("=")
+        key = key.strip()
+        if not sep or not key.isidentifier():
+            raise UsageError(f"--param expects NAME=VALUE (e.g. --param tau=30), got {item!r}")
+        try:
+            if ":" in value:
+                start, end = value.split(":", 1)
+                params[key] = (float(start), float(end))
+            else:
+                params[key] = float(value)
+        except ValueError:
+            raise UsageError(
+                f"--param {key} needs a number (or start:end for a drift), got {value!r}"
+            ) from None
+    return params
+
+
+# --------------------------------------------------------------------------- parser
+def build_parser():
+    """Return the argparse parser of the ``skdelay`` command."""
+    parser = _Parser(
+        prog="skdelay",
+        description="Find, model and check systems with delayed feedback from time series.",
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+
+    common_out = argparse.ArgumentParser(add_help=False)
+    common_out.add_argument("--force", action="store_true",
+                            help="replace the output directory if it exists (atomically)")
+    common_out.add_argument("--quiet", "-q", action="store_true",
+                            help="no progress display, only the summary")
+    common_out.add_argument("--n-jobs", type=int, default=None, metavar="J",
+                            help="parallel workers (joblib; -1 = all cores)")
+    common_out.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+
+    an = sub.add_parser(
+        "analyze", parents=[common_out],
+        help="delay scan, model, Lyapunov spectrum, validation and report for one series",
+        description="Run the two-window analysis of one time series and write results and "
+                    "an HTML report to --out.",
+    )
+    an.add_argument("file", metavar="FILE", help=".npy, .csv/.txt/.dat or .parquet file")
+    an.add_argument("--column", "-c", default=None,
+                    help="column name or 0-based index (needed when the file has several)")
+    an.add_argument("--dt", type=_positive_float, default=1.0,
+                    help="sampling interval in your time unit (default 1)")
+    an.add_argument("--m", type=parse_m, default=(2, 3, 4, 5), metavar="M",
+                    help="window lengths: 3, 2,3,5 or 2..5 (default 2..5)")
+    an.add_argument("--tau-min", type=_int_at_least(1), default=1, metavar="N",
+                    help="smallest delay of the scan, in samples (default 1)")
+    an.add_argument("--tau-max", type=_int_at_least(2), default=None, metavar="N",
+                    help="largest delay of the scan in samples (default: from the "
+                         "autocorrelation revival, at most 500)")
+    an.add_argument("--n-queries", type=_int_at_least(100), default=None, metavar="Q",
+                    help="query points per scan cell (default: automatic)")
+    an.add_argument("--out", "-o", default="skdelay-out", metavar="DIR",
+                    help="output directory (default skdelay-out)")
+
+    de = sub.add_parser(
+        "demo", parents=[common_out],
+        help="the paper's analysis on the embedded laser-like data (delays 50, 150, 400)",
+        description="Analyse the embedded CO2-laser-like data at the delays 50, 150 and 400 "
+                    "and reproduce the paper's table and rescaled-spectrum collapse.",
+    )
+    de.add_argument("--out", "-o", default="demo-report", metavar="DIR",
+                    help="output directory (default demo-report)")
+    de.add_argument("--n-samples", type=_int_at_least(2000), default=None, metavar="N",
+                    help="samples per data set (default 100000)")
+    de.add_argument("--delays", type=parse_m, default=None, metavar="D",
+                    help=argparse.SUPPRESS)
+
+    ga = sub.add_parser(
+        "gap", parents=[common_out],
+        help="diagnose the sim-to-real gap between a recording and a simulator",
+        description="Find which effect (noise, quantization, drift, ...) explains the "
+                    "difference between REAL and the simulator; write an HTML report.",
+    )
+    ga.add_argument("real", metavar="REAL", help="the recorded series (file)")
+    ga.add_argument("--system", required=True, metavar="NAME",
+                    help="simulator name (see `skdelay simulate --list`)")
+    ga.add_argument("--param", action="append", default=[], metavar="K=V",
+                    help="simulator parameter, repeatable (e.g. --param tau=30)")
+    ga.add_argument("--column", "-c", default=None, help="column name or 0-based index")
+    ga.add_argument("--dt", type=_positive_float, default=1.0,
+                    help="sampling interval of REAL in the simulator's time unit (default 1)")
+    ga.add_argument("--effects", default=None, metavar="E1,E2",
+                    help="candidate effects, comma separated (default: all registered)")
+    ga.add_argument("--out", "-o", default="gap-report", metavar="DIR",
+                    help="output directory (default gap-report)")
+
+    si = sub.add_parser(
+        "simulate", help="simulate a delay system and write the observed series",
+        description="Simulate a delay system (optionally with measurement noise and an ADC) "
+                    "and write the series to a .npy or .csv/.txt file.",
+    )
+    si.add_argument("name", metavar="NAME", nargs="?", help="system name")
+    si.add_argument("--list", action="store_true", help="list the systems and their parameters")
+    si.add_argument("--n", type=_int_at_least(1), default=None, metavar="N",
+                    help="number of samples")
+    si.add_argument("--dt", type=_positive_float, default=1.0,
+                    help="sampling interval (default 1)")
+    si.add_argument("--param", action="append", default=[], metavar="K=V",
+                    help="parameter, repeatable; K=a:b drifts linearly from a to b")
+    si.add_argument("--noise", type=_nonneg_float, default=0.0, metavar="S",
+                    help="measurement noise std relative to the signal std (default 0)")
+    si.add_argument("--bits", type=_int_at_least(1), default=None, metavar="B",
+                    help="quantise with a B-bit ADC over the signal range")
+    si.add_argument("--dynamical-noise", type=_nonneg_float, default=0.0, metavar="S",
+                    help="dynamical noise strength (default 0)")
+    si.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    si.add_argument("-o", "--output", default=None, metavar="FILE",
+                    help="output file (.npy, .csv or .txt)")
+    si.add_argument("--force", action="store_true", help="overwrite FILE if it exists")
+    return parser
+
+
+def _version():
+    try:
+        from importlib.metadata import version
+
+        return version("skdelay")
+    except Exception:  # pragma: no cover - not installed
+        return "unknown"
+
+
+# ------------------------------------------------------------------------- commands
+def _progress(args):
+    def say(message):
+        if not args.quiet:
+            print(f"[skdelay] {message}", file=sys.stderr, flush=True)
+
+    return say
+
+
+def _prepare_analyze(args):
+    from . import _analysis
+    from ._io import check_output_directory, read_series
+
+    check_output_directory(args.out, force=args.force)
+    series = read_series(args.file, args.column)
+    options = _analysis.check_options(
+        series.to_numpy(), m=args.m, tau_min=args.tau_min, tau_max=args.tau_max,
+        sample_dt=args.dt, n_queries=args.n_queries,
+    )
+
+    def run():
+        say = _progress(args)
+        start = time.perf_counter()
+        result = _analysis.analyze_series(
+            series.to_numpy(), **options, n_jobs=args.n_jobs, random_state=args.seed,
+            verbose=0 if args.quiet else 1, progress=say,
+            name=f"{Path(args.file).name}" + (f" [{series.name}]" if args.column else ""),
+        )
+        say("writing results and report")
+        result.save(args.out, force=args.force)
+        print(result.summary())
+        print(f"results in {args.out}/ (report.html) - {time.perf_counter() - start:.0f} s")
+
+    return run
+
+
+def _prepare_demo(args):
+    from . import _analysis
+    from ._io import check_output_directory
+
+    check_output_directory(args.out, force=args.force)
+    delays = args.delays or (50, 150, 400)
+
+    def run():
+        say = _progress(args)
+        start = time.perf_counter()
+        demo = _analysis.run_demo(
+            delays=delays, n_samples=args.n_samples, n_jobs=args.n_jobs,
+            random_state=args.seed, verbose=0 if args.quiet else 1, progress=say,
+        )
+        say("writing results and report")
+        demo.save(args.out, force=args.force)
+        print(demo.summary())
+        print(f"results in {args.out}/ (report.html) - {time.perf_counter() - start:.0f} s")
+
+    return run
+
+
+def _system(name, params):
+    from .systems import get_system
+
+    overrides = {k: v for k, v in params.items() if isinstance(v, tuple)}
+    fixed = {k: v for k, v in params.items() if not isinstance(v, tuple)}
+    try:
+        system = get_system(name, **fixed)
+        for end in (0, 1):  # both ends of a drift must be valid parameter sets
+            if overrides:
+                get_system(name, **fixed, **{k: v[end] for k, v in overrides.items()})
+    except (KeyError, TypeError, ValueError) as exc:
+        raise UsageError(_one_line(exc)) from exc
+    return system, overrides
+
+
+def _prepare_gap(args):
+    from ._io import check_output_directory, read_series
+
+    check_output_directory(args.out, force=args.force)
+    system, drift = _system(args.system, parse_params(args.param))
+    if drift:
+        raise UsageError("gap compares against a fixed simulator; give --param K=V without a "
+                         "start:end drift")
+    real = read_series(args.real, args.column, min_length=2)
+    effects = None
+    if args.effects:
+        from .gap import EFFECTS
+
+        effects = [e.strip() for e in args.effects.split(",") if e.strip()]
+        unknown = [e for e in effects if e not in EFFECTS]
+        if unknown:
+            raise UsageError(f"unknown effect(s) {', '.join(unknown)}; choose from "
+                             f"{', '.join(sorted(EFFECTS))}")
+
+    def run():
+        from .gap import diagnose_gap
+        from ._io import atomic_directory
+
+        say = _progress(args)
+        say(f"diagnosing the gap between {args.real} and {system!r}")
+        try:
+            report = diagnose_gap(real.to_numpy(), system, sample_dt=args.dt, effects=effects,
+                                  random_state=args.seed, n_jobs=args.n_jobs,
+                                  verbose=0 if args.quiet else 1)
+        except (ValueError, TypeError) as exc:  # documented: input problems
+            raise UsageError(_one_line(exc)) from exc
+        summary = report.summary()
+        with atomic_directory(args.out, force=args.force) as tmp:
+            report.to_html(tmp / "report.html")
+            report.effects.to_csv(tmp / "effects.csv", index=False)
+            report.where.to_csv(tmp / "where.csv", index=False)
+            (tmp / "summary.txt").write_text(summary + "\n", encoding="utf-8")
+            (tmp / "results.json").write_text(json.dumps({
+                "real": str(args.real), "system": system.name, "params": system.params,
+                "sample_dt": args.dt, "best_effect": report.best_effect,
+            }, indent=2, default=float) + "\n", encoding="utf-8")
+        print(summary)
+        print(f"report in {args.out}/report.html")
+
+    return run
+
+
+def _list_systems():
+    from .systems import SYSTEMS
+
+    lines = []
+    for name, cls in SYSTEMS.items():
+        defaults = cls().params
+        lines.append(f"{name}: " + ", ".join(f"{k}={v:g}" for k, v in defaults.items()))
+    return "\n".join(lines)
+
+
+def _prepare_simulate(args):
+    if args.list:
+        return lambda: print(_list_systems())
+    if args.name is None:
+        raise UsageError("simulate needs a system NAME (see `skdelay simulate --list`)")
+    if args.n is None:
+        raise UsageError("simulate needs --n N, the number of samples")
+    if args.output is None:
+        raise UsageError("simulate needs -o FILE (.npy, .csv or .txt)")
+    out = Path(args.output)
+    if out.suffix.lower() not in {".npy", ".csv", ".txt", ".dat"}:
+        raise UsageError(f"-o {out}: name the output *.npy, *.csv or *.txt")
+    if out.exists() and not args.force:
+        raise UsageError(f"{out} exists; choose another -o FILE or pass --force to overwrite it")
+    if out.is_dir():
+        raise UsageError(f"{out} is a directory; give a file name")
+    if args.bits is not None and args.bits > 32:
+        raise UsageError(f"--bits {args.bits} is more than a real ADC has; use 8..24")
+    system, drift = _system(args.name, parse_params(args.param))
+    if args.n > 50_000_000:
+        raise UsageError(f"--n {args.n} is too many samples for one file; use at most 5e7")
+
+    def run():
+        from ._io import write_series
+        from .systems import measure
+
+        x = system.simulate(args.n, sample_dt=args.dt, random_state=args.seed,
+                            dynamical_noise=args.dynamical_noise, **drift)
+        if args.noise > 0 or args.bits is not None:
+            x = measure(x, noise=args.noise, bits=args.bits, normalise=False,
+                        random_state=args.seed + 1)
+        comment = (f"skdelay simulate {system!r} n={args.n} sample_dt={args.dt} "
+                   f"noise={args.noise} bits={args.bits} seed={args.seed}")
+        write_series(out, x, name=system.name, comment=comment)
+        print(f"wrote {args.n} samples of {system.name} to {out}", file=sys.stderr)
+
+    return run
+
+
+_COMMANDS = {
+    "analyze": _prepare_analyze,
+    "demo": _prepare_demo,
+    "gap": _prepare_gap,
+    "simulate": _prepare_simulate,
+}
+
+
+def main(argv=None):
+    """Entry point of the ``skdelay`` console script; returns the exit status.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Arguments without the program name (default: ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        0 on success, 2 for bad usage or input, 1 when the computation failed.
+
+    Examples
+    --------
+    >>> from skdelay.cli import main
+    >>> main(["simulate", "--list"]) == 0  # doctest: +ELLIPSIS
+    mackey_glass: ...
+    True
+    """
+    parser = build_parser()
+    prog = "skdelay"
+    try:
+        args = parser.parse_args(argv)
+        if args.command is None:
+            parser.print_help(sys.stderr)
+            return EXIT_USAGE
+        prog = f"skdelay {args.command}"
+        run = _COMMANDS[args.command](args)
+    except SystemExit as exc:  # --help / --version
+        return int(exc.code or 0)
+    except (UsageError, ValueError, TypeError, KeyError, OSError) as exc:
+        print(f"{prog}: error: {_one_line(exc)}", file=sys.stderr)
+        return EXIT_USAGE
+    try:
+        run()
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted; nothing was written", file=sys.stderr)
+        return 130
+    except UsageError as exc:
+        print(f"{prog}: error: {_one_line(exc)}", file=sys.stderr)
+        return EXIT_USAGE
+    except Exception as exc:  # noqa: BLE001 - the CLI reports every failure in one line
+        print(f"{prog}: failed: {type(exc).__name__}: {_one_line(exc)}", file=sys.stderr)
+        return EXIT_FAILURE
+    return EXIT_OK
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,288 @@
+"""Dynamics of a fitted two-window model: free runs, Lyapunov spectra, faithfulness.
+
+A fitted ``Pipeline(TwoWindowEmbedding(m, tau), LocalLinearDelayMap)`` is a
+delay map ``s_{n+1} = g(v_n)`` on the state ``(s_n, ..., s_{n-D+1})`` with
+``D = required_lags(m, tau)`` (``tau + m // 2`` for the centred second window,
+i.e. about the paper's ``tau + m``).  This module
+
+* iterates it (:func:`iterate`), also with a delay other than the fitted one
+  (the map itself does not depend on the delay, Buenner et al. sec. V);
+* computes its ``D`` largest Lyapunov exponents from the Jacobians ``a_n`` of
+  the local linear maps along a trajectory (:func:`lyapunov_spectrum`);
+* finds the smallest faithful window length (:func:`minimal_embedding`);
+* re-exports the spectrum summaries :func:`kaplan_yorke_dimension`,
+  :func:`ks_entropy`, :func:`dimension_density`, :func:`rescale_spectrum`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._checks import check_positive_int, check_random_state, check_series
+from ._faithful import minimal_embedding
+from ._iterate import ModelEscapeError, ModelEscapeWarning, Trajectory, run_model
+from ._model import resolve_model, self_query_index, support_guard
+from ._spectrum import (
+    LyapunovSpectrum,
+    dimension_density,
+    kaplan_yorke_dimension,
+    ks_entropy,
+    rescale_spectrum,
+)
+from ._tangent import exponents_from_logs, tangent_qr
+from ._windows import lagged_windows
+
+__all__ = [
+    "iterate",
+    "lyapunov_spectrum",
+    "minimal_embedding",
+    "ModelEscapeWarning",
+    "ModelEscapeError",
+    "Trajectory",
+    "LyapunovSpectrum",
+    "kaplan_yorke_dimension",
+    "ks_entropy",
+    "dimension_density",
+    "rescale_spectrum",
+]
+
+_CHUNK_ROWS = 1 << 16
+
+
+def _check_tau(tau, model):
+    return model.tau if tau is None else check_positive_int(tau, name="tau")
+
+
+def iterate(model, history, n_steps, *, tau=None, noise=0.0, random_state=None,
+            on_escape="warn", escape_distance=5.0, range_margin=0.25):
+    """Free-run a fitted two-window model from an initial history.
+
+    Each step builds ``v_n(m, tau)`` from the last values, fits the local
+    affine map on its neighbours in the model's database exactly as
+    :meth:`LocalLinearDelayMap.predict` does, and appends ``s_{n+1}`` (plus
+    dynamical noise).  The whole loop runs compiled: one k-d tree query and
+    one small Cholesky solve per step.
+
+    Parameters
+    ----------
+    model : Pipeline or (TwoWindowEmbedding, LocalLinearDelayMap) or DelaySelectorCV
+        A fitted two-window model.
+    history : array-like of shape (n_history,)
+        Initial values, oldest first (the last value is the most recent);
+        at least ``required_lags(m, tau)`` (~ ``tau + m // 2``) of them, e.g.
+        a segment of the data for on-attractor initial conditions.
+    n_steps : int
+        Number of new values to generate.
+    tau : int, default=None
+        Delay (samples) of the second window during the run; default: the
+        fitted one.  A model fitted at delay ``tau_a`` generates data for
+        ``tau_b`` as long as the run stays on the support of the data.
+    noise : float, default=0.0
+        Standard deviation (data units) of Gaussian dynamical noise added
+        to every new value.
+    random_state : int, Generator or None
+        Seed of the dynamical noise.
+    on_escape : {"warn", "raise", "ignore"}, default="warn"
+        What to do when the run leaves the data's support: warn with
+        :class:`ModelEscapeWarning` and return the values up to there,
+        raise :class:`ModelEscapeError`, or return them silently.
+    escape_distance : float, default=5.0
+        The run escaped when the query's nearest database vector is farther
+        than ``escape_distance`` times the 99th percentile of the data's own
+        nearest-neighbour distances.
+    range_margin : float, default=0.25
+        ... or when a value leaves the data range widened by this fraction
+        of its width (or is not finite).
+
+    Returns
+    -------
+    Trajectory
+        1-D float array of the generated values (without the history), with
+        attributes ``escaped``, ``escape_step`` and ``reason``.
+
+    Raises
+    ------
+    ModelEscapeError
+        With ``on_escape="raise"`` when the model leaves the support.
+
+    Examples
+    --------
+    >>> from sklearn.pipeline import make_pipeline
+    >>> from skdelay import LocalLinearDelayMap, TwoWindowEmbedding, lagged_windows
+    >>> from skdelay.dynamics import iterate
+    >>> from skdelay.systems import MackeyGlass
+    >>> x = MackeyGlass(tau=17.0).simulate(6000, random_state=0)
+    >>> X, y = lagged_windows(x, n_lags=18)
+    >>> model = make_pipeline(TwoWindowEmbedding(m=2, tau=17),
+    ...                       LocalLinearDelayMap(n_neighbors=20)).fit(X, y)
+    >>> run = iterate(model, x[:100], 3000)
+    >>> run.shape, run.escaped, bool(x.min() - 0.05 < run.min() < run.max() < x.max() + 0.05)
+    ((3000,), False, True)
+    """
+    mdl = resolve_model(model)
+    tau = _check_tau(tau, mdl)
+    n_steps = check_positive_int(n_steps, name="n_steps", minimum=0)
+    if on_escape not in ("warn", "raise", "ignore"):
+        raise ValueError(f"on_escape must be 'warn', 'raise' or 'ignore', got {on_escape!r}.")
+    dim = mdl.state_dim(tau)
+    hist = check_series(history, name="history", min_length=dim, allow_constant=True)
+    noise = float(noise)
+    if not noise >= 0:
+        raise ValueError(f"noise must be a non-negative standard deviation, got {noise}.")
+    kicks = np.zeros(n_steps)
+    if noise > 0:
+        kicks = noise * check_random_state(random_state).standard_normal(n_steps)
+    reg = mdl.regressor
+    guard = support_guard(reg, distance_factor=escape_distance, range_margin=range_margin)
+    return run_model(guard, hist, n_steps, mdl.lags(tau), k=reg.n_neighbors,
+                     radius=getattr(reg, "radius", None), ridge=reg.ridge,
+                     order=getattr(reg, "order", 1), kicks=kicks, on_escape=on_escape)
+
+
+def lyapunov_spectrum(model, series, *, n_exponents=None, n_steps=None, sample_dt=1.0,
+                      tau=None, n_transient=None, qr_interval=None, n_blocks=10,
+                      exclude_self="auto", flow=False, random_state=0):
+    """Lyapunov spectrum of a fitted two-window model along a trajectory.
+
+    The tangent map of the delay map is the shift plus one new row,
+    ``delta s_{n+1} = a_n . delta v_n``, with ``a_n`` the gradient of the
+    local linear map at ``v_n`` (from :meth:`LocalLinearDelayMap.local_maps`,
+    batched).  ``n_exponents`` tangent vectors are propagated at O(m) cost
+    per vector and step and re-orthonormalised (Householder QR) every
+    ``qr_interval`` steps; the exponents are the time-averaged
+    ``log |R_jj|`` (Benettin / Eckmann-Ruelle).
+
+    Parameters
+    ----------
+    model : Pipeline or (TwoWindowEmbedding, LocalLinearDelayMap) or DelaySelectorCV
+        A fitted local *linear* two-window model (``order=1``).
+    series : array-like of shape (n_samples,)
+        The trajectory along which the Jacobians are taken: the data (then
+        each point's own row is left out of its neighbourhood, see
+        ``exclude_self``) or a model run from :func:`iterate`.
+    n_exponents : int, default=None
+        How many of the largest exponents; at most (and by default) the state
+        dimension ``D = required_lags(m, tau)``.  For long delays ask for
+        fewer: the cost grows as ``n_exponents**2`` per step.
+    n_steps : int, default=None
+        Use only the first ``n_steps`` steps of ``series`` (default: all).
+    sample_dt : float, default=1.0
+        Time between samples; exponents are returned per time unit
+        (``per step / sample_dt``), as the exact spectra of the simulators.
+    tau : int, default=None
+        Delay of the second window along ``series``; default the fitted one
+        (set it to analyse a model transplanted to another delay).
+    n_transient : int, default=None
+        Steps discarded while the tangent vectors align
+        (default ``min(max(2 D, 1000), n // 5)``).
+    qr_interval : int, default=None
+        Steps between QRs (default ``max(1, min(D // 2, 200))``); a QR is
+        also taken early if a tangent vector grows by 10^6.
+    n_blocks : int, default=10
+        Blocks for the standard error (``spread``) of each exponent.
+    exclude_self : {"auto", True, False}, default="auto"
+        Leave each data point (and the model's ``theiler_window`` around it)
+        out of its own neighbourhood.  "auto": when ``series`` is the data
+        the model was fitted on (detected by matching its vectors).
+    flow : bool, default=False
+        ``series`` samples a continuous-time flow (a delay *differential*
+        equation), whose spectrum holds an exact zero (the direction along
+        the flow).  Its data-driven estimate is only noise, yet it decides
+        whether it enters the Kaplan-Yorke sum and the count of positive
+        exponents; with ``flow=True`` the exponent closest to zero is set to
+        exactly 0 (its estimate is kept in ``extra["zero_exponent"]``).
+    random_state : int, Generator or None, default=0
+        Initial tangent vectors.
+
+    Returns
+    -------
+    LyapunovSpectrum
+        ``exponents`` (per time unit, descending), ``spread`` (standard
+        error over blocks), ``sample_dt``, ``n_steps``; per-step values are
+        ``.per_step``; ``.extra`` holds ``m``, ``tau``, ``state_dim``,
+        ``exclude_self``, ``n_transient``, ``qr_interval``.
+
+    Raises
+    ------
+    ValueError
+        If ``n_exponents`` exceeds the state dimension, the series is too
+        short for ``m`` and ``tau``, or the model is local constant.
+
+    Examples
+    --------
+    >>> from sklearn.pipeline import make_pipeline
+    >>> from skdelay import LocalLinearDelayMap, TwoWindowEmbedding, lagged_windows
+    >>> from skdelay.dynamics import lyapunov_spectrum
+    >>> from skdelay.systems import MackeyGlass
+    >>> x = MackeyGlass(tau=17.0).simulate(20000, random_state=0)
+    >>> X, y = lagged_windows(x, n_lags=18)
+    >>> model = make_pipeline(TwoWindowEmbedding(m=2, tau=17),
+    ...                       LocalLinearDelayMap(n_neighbors=20)).fit(X, y)
+    >>> spec = lyapunov_spectrum(model, x, n_exponents=4)
+    >>> spec.exponents.shape, bool(0.002 < spec.exponents[0] < 0.009)
+    ((4,), True)
+    """
+    mdl = resolve_model(model)
+    tau = _check_tau(tau, mdl)
+    dim = mdl.state_dim(tau)
+    if n_exponents is None:
+        n_exponents = dim
+    n_exponents = check_positive_int(n_exponents, name="n_exponents")
+    if n_exponents > dim:
+        raise ValueError(
+            f"n_exponents={n_exponents} exceeds the state dimension {dim} of the model "
+            f"(m={mdl.m}, tau={tau}): a delay map with this state has only {dim} exponents; "
+            f"ask for at most {dim} or use a larger tau / m."
+        )
+    if getattr(mdl.regressor, "order", 1) == 0:
+        raise ValueError("the Lyapunov spectrum needs a local linear model (order=1); a local "
+                         "constant model (order=0) has no Jacobian.")
+    sample_dt = float(sample_dt)
+    if not sample_dt > 0:
+        raise ValueError(f"sample_dt must be positive, got {sample_dt}.")
+    min_steps = 4 * n_blocks
+    s = check_series(series, name="series", min_length=dim + 1 + min_steps)
+    X, _ = lagged_windows(s, dim)
+    if n_steps is not None:
+        n_steps = check_positive_int(n_steps, name="n_steps", minimum=min_steps)
+        X = X[:n_steps]
+    n = X.shape[0]
+    if n < max(min_steps, 2 * dim):
+        raise ValueError(
+            f"series gives only {n} steps for m={mdl.m}, tau={tau} (state dimension {dim}); "
+            f"at least {max(min_steps, 2 * dim)} are needed, better >> 10 * {dim}: pass a "
+            "longer series."
+        )
+    V = np.ascontiguousarray(X[:, mdl.lags(tau)])
+    qidx = None
+    if exclude_self not in ("auto", True, False):
+        raise ValueError(f"exclude_self must be 'auto', True or False, got {exclude_self!r}.")
+    if exclude_self is not False:
+        qidx = self_query_index(mdl.regressor, V)
+        if qidx is None and exclude_self is True:
+            raise ValueError("exclude_self=True but series is not the data the model was "
+                             "fitted on (its vectors do not match the model's database).")
+    jac = np.empty_like(V)
+    for lo in range(0, n, _CHUNK_ROWS):
+        sl = slice(lo, min(n, lo + _CHUNK_ROWS))
+        jac[sl], _ = mdl.regressor.local_maps(
+            V[sl], query_index=None if qidx is None else qidx[sl])
+    if not np.all(np.isfinite(jac)):
+        raise ValueError("the local maps contain NaN/inf; the model or series is degenerate.")
+    if n_transient is None:
+        n_transient = min(max(2 * dim, 1000), n // 5)
+    if qr_interval is None:
+        qr_interval = max(1, min(dim // 2, 200))
+    logs, ends = tangent_qr(jac, mdl.lags(tau), dim, n_exponents, interval=qr_interval,
+                            random_state=random_state)
+    lam, spread, n_used = exponents_from_logs(logs, ends, n_transient=n_transient,
+                                              n_blocks=n_blocks)
+    extra = dict(m=mdl.m, tau=tau, state_dim=dim, exclude_self=qidx is not None,
+                 n_transient=int(n_transient), qr_interval=int(qr_interval))
+    if flow:
+        i0 = int(np.argmin(np.abs(lam)))
+        extra["zero_exponent"] = float(lam[i0] / sample_dt)
+        lam = lam.copy()
+        lam[i0] = 0.0
+    return LyapunovSpectrum(lam / sample_dt, spread / sample_dt, sample_dt=sample_dt,
+                            n_steps=n_used, extra=extra)

@@ -1,0 +1,205 @@
+"""diagnose_gap: where real and simulated data differ, which effect explains it, how much."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+from joblib import Parallel, delayed
+
+from .._checks import check_positive_int, check_series
+from ._effects import get_effect, resolve_effects
+from ._fit import fit_effect
+from ._problem import GapProblem, SimulationFailed
+from ._report import GapReport
+from ._where import localise
+
+#: the gap is significant when it exceeds the no-gap (leave-one-out) mean by this many stds
+SIGNIFICANCE_SIGMAS = 5.0
+#: ... and is at least this large in absolute terms
+MIN_GAP = 1.0
+#: an effect "explains" the gap when it removes at least this fraction of it
+MIN_SHRINK = 0.3
+
+MIN_SAMPLES = 2000
+
+
+def _check_simulator(simulator):
+    if not callable(getattr(simulator, "simulate", None)):
+        raise TypeError(
+            f"simulator must have a simulate(n_samples, *, sample_dt, random_state, **overrides) "
+            f"method (a skdelay.systems system or an adapter), got {type(simulator).__name__}."
+        )
+    params = getattr(simulator, "params", None)
+    if not isinstance(params, dict):
+        raise TypeError(
+            "simulator.params must be a dict of parameter values (may be empty); "
+            f"got {type(params).__name__}."
+        )
+    return params
+
+
+def _check_length(n, params, sample_dt):
+    tau = params.get("tau")
+    if tau is not None:
+        delay = float(tau) / sample_dt
+        if n <= delay:
+            raise ValueError(
+                f"real has {n} samples, shorter than the simulator's delay tau={tau} "
+                f"({delay:.4g} samples at sample_dt={sample_dt}); check sample_dt or record at "
+                f"least {max(MIN_SAMPLES, math.ceil(20 * delay))} samples."
+            )
+        need = max(MIN_SAMPLES, math.ceil(20 * delay))
+    else:
+        need = MIN_SAMPLES
+    if n < need:
+        raise ValueError(
+            f"real has {n} samples; a gap diagnosis needs at least {need} (spectra, histograms "
+            "and forecast errors are compared against the sim-vs-sim spread). Record a longer "
+            "series."
+        )
+
+
+def significance(problem):
+    """Threshold of the gap for 'real differs from simulated' from the leave-one-out null."""
+    null = problem.null_gaps
+    mean = float(np.mean(null))
+    std = float(np.std(null, ddof=1)) if null.size > 1 else mean
+    threshold = max(mean + SIGNIFICANCE_SIGMAS * max(std, 0.1), MIN_GAP)
+    gap = problem.before.gap
+    return {"gap_before": gap, "null_mean": mean, "null_std": std, "threshold": threshold,
+            "significant": bool(gap > threshold)}
+
+
+def _table(results, gap_before, problem, base_label=None):
+    rows = []
+    scale, offset = float(np.std(problem.real)), float(np.mean(problem.real))
+    for r in results:
+        eff = get_effect(r["effect"])
+        ok = r["status"] == "ok"
+        after = r["gap_after"] if ok else np.nan
+        shrink = 1.0 - max(after, 0.0) / gap_before if (ok and gap_before > 0) else np.nan
+        try:
+            text = eff.describe(r["params"], scale=scale, offset=offset,
+                                sample_dt=problem.sample_dt) if r["params"] else ""
+        except (KeyError, TypeError, ValueError):
+            text = ""
+        rows.append({"effect": r["effect"], "params": r["params"], "gap_before": gap_before,
+                     "gap_after": after, "shrink": shrink, "status": r["status"],
+                     "target": r["target"], "description": text, "n_evals": r["n_evals"],
+                     "seconds": r["seconds"]})
+    df = pd.DataFrame(rows)
+    df["_failed"] = df["status"] != "ok"
+    df = df.sort_values(["_failed", "gap_after"], kind="stable").drop(columns="_failed")
+    return df.reset_index(drop=True)
+
+
+def diagnose_gap(real, simulator, *, sample_dt=1.0, effects=None, random_state=None,
+                 n_jobs=None, n_sims=4, combine=True, verbose=0):
+    """Diagnose the gap between measured data and a simulator.
+
+    (1) *Where*: indicators (power spectrum, histogram, autocorrelation,
+    statistics per time segment, distinct values, forecast-error curve) of the
+    real series are compared with an ensemble of simulator runs (other seeds),
+    bin by bin, as z-scores against the sim-vs-sim spread; runs of discrepant
+    bins form ``report.where``.  (2) *Which*: every candidate effect is fitted
+    (signature guess, then a small bounded search) so that simulator + effect
+    matches the real data, and ranked by how much of the gap it removes.
+    (3) *How far*: ``gap_before``, ``gap_after`` and ``shrink`` per effect, the
+    residual after the best one and, if that is still significant, a second
+    effect fitted on top (combined causes).
+
+    Gain and offset of ``real`` are nuisance: every comparison is made on
+    z-scored series and locations are reported in the units of ``real``.
+
+    Parameters
+    ----------
+    real : array-like of shape (n,)
+        The measured series (finite; at least ``max(2000, 20 * delay)`` samples).
+    simulator : object
+        A :mod:`skdelay.systems` system or any object with
+        ``simulate(n_samples, *, sample_dt, random_state, **overrides)`` and a
+        ``params`` dict (``tau`` in it enables the delay diagnostics).
+    sample_dt : float, default=1.0
+        Sampling step of ``real`` in the simulator's time unit.
+    effects : None or list of str / Effect
+        Candidate effects; None = every registered effect (:data:`EFFECTS`).
+    random_state : int, RandomState instance or None
+        Seeds of the simulator ensemble and of the effects' noise.
+    n_jobs : int or None
+        joblib workers for the candidate fits (``parallel_config`` applies).
+    n_sims : int, default=4
+        Size of the simulator ensemble that defines the sim-vs-sim spread.
+    combine : bool, default=True
+        Fit a second effect on top of the best one when a significant gap remains.
+    verbose : int, default=0
+        joblib verbosity.
+
+    Returns
+    -------
+    GapReport
+
+    Raises
+    ------
+    ValueError
+        ``real`` contains NaN/inf, is constant or too short (shorter than the
+        delay, or too short for the statistics); unknown effect name; the
+        simulator fails with its own parameters.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from skdelay.systems import MackeyGlass
+    >>> from skdelay.gap import diagnose_gap
+    >>> mg = MackeyGlass()
+    >>> t = np.arange(8000)
+    >>> real = mg.simulate(8000, random_state=1) + 0.1 * np.sin(2 * np.pi * 0.2 * t)
+    >>> report = diagnose_gap(real, mg, effects=["periodic_interference", "measurement_noise"],
+    ...                       random_state=0)
+    >>> report.best_effect
+    'periodic_interference'
+    >>> round(report.effects.params[0]["frequency"], 3)
+    0.2
+    """
+    real = check_series(real, name="real", min_length=MIN_SAMPLES)
+    sample_dt = float(sample_dt)
+    if not (math.isfinite(sample_dt) and sample_dt > 0):
+        raise ValueError(f"sample_dt must be a positive time step, got {sample_dt}.")
+    params = _check_simulator(simulator)
+    _check_length(real.size, params, sample_dt)
+    n_sims = check_positive_int(n_sims, name="n_sims", minimum=3)
+    candidates = resolve_effects(effects)
+    try:
+        problem = GapProblem(real, simulator, sample_dt=sample_dt, n_sims=n_sims,
+                             random_state=random_state, n_jobs=n_jobs)
+    except SimulationFailed as exc:
+        raise ValueError(
+            f"the simulator fails with its own parameters, so there is nothing to compare: {exc}"
+        ) from exc
+    where = localise(problem)
+    sig = significance(problem)
+    gap_before = problem.before.gap
+    parallel = Parallel(n_jobs=n_jobs, verbose=verbose)
+    results = parallel(delayed(fit_effect)(e, problem) for e in candidates)
+    table = _table(results, gap_before, problem)
+    best, chain = None, []
+    top = table.iloc[0]
+    if sig["significant"] and top["status"] == "ok" and top["shrink"] >= MIN_SHRINK:
+        best = top["effect"]
+        chain = [(get_effect(best), dict(top["params"]))]
+    combined = None
+    if best is not None and combine and len(candidates) > 1 and top["gap_after"] > sig["threshold"]:
+        others = [e for e in candidates if e.name != best]
+        more = parallel(delayed(fit_effect)(e, problem, chain) for e in others)
+        second = _table(more, top["gap_after"], problem)
+        s = second.iloc[0]
+        if s["status"] == "ok" and s["shrink"] >= MIN_SHRINK:
+            combined = {"effects": [best, s["effect"]], "params": [dict(top["params"]),
+                        dict(s["params"])], "gap_after": float(s["gap_after"]),
+                        "shrink": 1.0 - max(s["gap_after"], 0.0) / gap_before,
+                        "table": second}
+            chain = chain + [(get_effect(s["effect"]), dict(s["params"]))]
+    after = problem.evaluate(chain, "full") if chain else None
+    return GapReport.from_problem(problem, table=table, where=where, significance=sig,
+                                  best_effect=best, combined=combined, after=after)

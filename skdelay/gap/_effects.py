@@ -1,0 +1,276 @@
+"""Base class and registry of the candidate causes of a sim-to-real gap.
+
+An *effect* is one physical reason why measured data can differ from a
+simulator that is otherwise right: a measurement artefact applied to the
+simulated observation (noise, hum, ADC steps, detector bandwidth, ...) or a
+change of the simulation itself (dynamical noise, another delay, a drifting
+parameter).  Each effect knows
+
+* its parameters, their units and their admissible ``bounds``;
+* ``guess(real, sim, sample_dt)``: a first estimate read off the signature the
+  effect leaves in the data (a spectral line gives the hum frequency, the set
+  of distinct values the ADC step, ...);
+* how it is applied: ``apply(x, params, ...)`` to a simulated observation
+  (``target = "observation"``) or ``overrides(params, simulator)`` passed to
+  ``simulator.simulate(..., **overrides)`` (``target = "simulation"``).
+
+:func:`diagnose_gap` fits every registered effect (or the ones it is given);
+:func:`register_effect` adds user-defined ones.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+
+#: name -> effect class; filled by the effect modules and :func:`register_effect`.
+EFFECTS = {}
+
+_NAME = re.compile(r"^[a-z][a-z0-9_]*$")
+
+
+class Effect:
+    """Base class of a candidate cause of a sim-to-real gap.
+
+    Subclasses set the class attributes and implement :meth:`guess` plus
+    either :meth:`apply` (``target = "observation"``) or :meth:`overrides`
+    (``target = "simulation"``).  Parameters are plain floats in the units
+    listed in ``units``; amplitudes of observation effects are relative to
+    the standard deviation of the clean simulated signal, so they do not
+    depend on gain or offset of the real data.
+
+    Attributes
+    ----------
+    name : str
+        Registry key (lower case, letters, digits, underscores).
+    target : {"observation", "simulation"}
+        Where the effect acts.
+    stage : int
+        Position in the measurement chain (smaller acts first) when several
+        observation effects are combined.
+    bounds : dict
+        ``param -> (low, high)`` admissible values of the searched parameters.
+    log_params : tuple of str
+        Parameters searched on a logarithmic scale.
+    units : dict
+        ``param -> unit`` (human readable, for the report).
+    description : str
+        One line for the report.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from skdelay.gap import Effect, register_effect
+    >>> class Offset(Effect):
+    ...     name = "dc_step"
+    ...     bounds = {"size": (0.01, 3.0)}
+    ...     units = {"size": "std of the signal"}
+    ...     description = "a step in the baseline half-way through the record"
+    ...     def guess(self, real, sim, sample_dt):
+    ...         half = len(real) // 2
+    ...         z = (real - real.mean()) / real.std()
+    ...         return {"size": float(min(max(abs(z[half:].mean() - z[:half].mean()), 0.01), 3.0))}
+    ...     def apply(self, x, params, *, sample_dt=1.0, random_state=None):
+    ...         y = np.array(x, dtype=float)
+    ...         y[len(y) // 2:] += params["size"] * y.std()
+    ...         return y
+    >>> _ = register_effect(Offset)
+    >>> "dc_step" in __import__("skdelay.gap", fromlist=["EFFECTS"]).EFFECTS
+    True
+    >>> _ = unregister_effect("dc_step")
+    """
+
+    name = None
+    target = "observation"
+    stage = 50
+    bounds = {}
+    log_params = ()
+    units = {}
+    description = ""
+
+    # ----------------------------------------------------------------- API
+    def guess(self, real, sim, sample_dt):
+        """Initial parameters from the data's signature.
+
+        Parameters
+        ----------
+        real : ndarray (n,)
+            The measured series (any gain and offset).
+        sim : ndarray (n_sims, n_sim)
+            Clean simulated observations (``n_sim >= n``).
+        sample_dt : float
+            Sampling step in time units.
+
+        Returns
+        -------
+        dict
+            Every parameter in ``bounds`` (plus any fixed ones ``apply`` needs).
+        """
+        return {p: _mid(lo, hi, p in self.log_params) for p, (lo, hi) in self.bounds.items()}
+
+    def apply(self, x, params, *, sample_dt=1.0, random_state=None):
+        """Return the observation ``x`` as seen through the effect (observation effects)."""
+        raise TypeError(
+            f"effect {self.name!r} acts on the simulation; use its overrides(), not apply()."
+        )
+
+    def overrides(self, params, simulator):
+        """Keyword overrides for ``simulator.simulate`` (simulation effects)."""
+        raise TypeError(
+            f"effect {self.name!r} acts on the observation; use its apply(), not overrides()."
+        )
+
+    # ------------------------------------------------------------- helpers
+    def search_bounds(self, guess, context):
+        """Bounds of the local search around ``guess`` (default: the global ``bounds``).
+
+        ``context`` is the fitting problem (gives ``sample_dt``, ``n_samples``,
+        the simulator); effects override this to search a narrow window.
+        """
+        return dict(self.bounds)
+
+    def check(self, params, simulator=None):
+        """Raise ``ValueError`` if the effect cannot act with ``simulator``."""
+
+    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0):
+        """One phrase with the fitted parameters in physical units.
+
+        ``scale`` and ``offset`` convert the clean signal's standard units into
+        the units of the real data (``value_real = offset + scale * z``).
+        """
+        parts = []
+        for key, value in params.items():
+            unit = self.units.get(key, "")
+            parts.append(f"{key} = {_fmt(value)}{(' ' + unit) if unit else ''}")
+        return ", ".join(parts)
+
+    def __repr__(self):
+        return f"{type(self).__name__}()"
+
+
+def _mid(lo, hi, log):
+    return float(math.sqrt(lo * hi) if log else 0.5 * (lo + hi))
+
+
+def _fmt(value):
+    if isinstance(value, str):
+        return value
+    value = float(value)
+    if not np.isfinite(value):
+        return "none"
+    return f"{value:.4g}"
+
+
+def register_effect(effect, *, overwrite=False):
+    """Add an effect class (or instance) to :data:`EFFECTS`.
+
+    Parameters
+    ----------
+    effect : subclass or instance of :class:`Effect`
+    overwrite : bool, default False
+        Replace an existing effect of the same name.
+
+    Returns
+    -------
+    type
+        The registered class (so this works as a decorator).
+
+    Raises
+    ------
+    TypeError
+        If ``effect`` is not an :class:`Effect` or lacks ``apply``/``overrides``.
+    ValueError
+        If the name is missing, malformed or already taken.
+
+    Examples
+    --------
+    >>> from skdelay.gap import Effect, register_effect, unregister_effect
+    >>> @register_effect
+    ... class Mirror(Effect):
+    ...     name = "sign_flip"
+    ...     bounds = {"fraction": (0.0, 1.0)}
+    ...     def apply(self, x, params, *, sample_dt=1.0, random_state=None):
+    ...         return -x if params["fraction"] > 0.5 else x
+    >>> Mirror.name
+    'sign_flip'
+    >>> _ = unregister_effect("sign_flip")
+    """
+    cls = effect if isinstance(effect, type) else type(effect)
+    if not (isinstance(cls, type) and issubclass(cls, Effect)):
+        raise TypeError(
+            f"register_effect expects a subclass of skdelay.gap.Effect, got {effect!r}; "
+            "derive your class from Effect and set name, bounds and apply/overrides."
+        )
+    name = cls.name
+    if not isinstance(name, str) or not _NAME.match(name):
+        raise ValueError(
+            f"effect name {name!r} is not valid; use a lower-case identifier such as "
+            "'my_effect' (letters, digits, underscores, starting with a letter)."
+        )
+    if cls.target not in ("observation", "simulation"):
+        raise ValueError(
+            f"effect {name!r} has target={cls.target!r}; use 'observation' or 'simulation'."
+        )
+    hook = "apply" if cls.target == "observation" else "overrides"
+    if getattr(cls, hook) is getattr(Effect, hook):
+        raise TypeError(f"effect {name!r} acts on the {cls.target} but does not define {hook}().")
+    for key, bound in dict(cls.bounds).items():
+        if len(bound) != 2 or not float(bound[0]) < float(bound[1]):
+            raise ValueError(f"effect {name!r}: bounds[{key!r}] must be (low, high) with low < high.")
+    if name in EFFECTS and not overwrite and EFFECTS[name] is not cls:
+        raise ValueError(
+            f"an effect named {name!r} is already registered; pick another name or pass "
+            "overwrite=True."
+        )
+    EFFECTS[name] = cls
+    return cls
+
+
+def unregister_effect(name):
+    """Remove ``name`` from :data:`EFFECTS` and return its class."""
+    try:
+        return EFFECTS.pop(name)
+    except KeyError:
+        raise ValueError(
+            f"no effect named {name!r} is registered; registered: {sorted(EFFECTS)}."
+        ) from None
+
+
+def get_effect(effect):
+    """Return an effect instance from a name, class or instance (clear error otherwise)."""
+    if isinstance(effect, Effect):
+        return effect
+    if isinstance(effect, type) and issubclass(effect, Effect):
+        return effect()
+    if isinstance(effect, str):
+        if effect not in EFFECTS:
+            raise ValueError(
+                f"unknown effect {effect!r}; valid names are {sorted(EFFECTS)} "
+                "(or register your own with skdelay.gap.register_effect)."
+            )
+        return EFFECTS[effect]()
+    raise TypeError(
+        f"effects must be given by name, Effect class or instance, got {effect!r}."
+    )
+
+
+def resolve_effects(effects):
+    """Instances for ``effects`` (None -> every registered effect), no duplicates."""
+    if effects is None:
+        items = list(EFFECTS)
+    elif isinstance(effects, (str, Effect)) or isinstance(effects, type):
+        items = [effects]
+    else:
+        items = list(effects)
+    out, seen = [], set()
+    for item in items:
+        eff = get_effect(item)
+        if eff.name in seen:
+            raise ValueError(f"effect {eff.name!r} is listed twice; list each effect once.")
+        seen.add(eff.name)
+        out.append(eff)
+    if not out:
+        raise ValueError("effects is empty; pass None (all effects) or at least one name.")
+    return out

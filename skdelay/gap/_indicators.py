@@ -1,0 +1,419 @@
+"""Indicators: profiles of a series that real and simulated data should share.
+
+Every indicator turns a (z-scored, so gain and offset do not matter) series
+into a vector of features, one per *bin* (a frequency band, a value range, a
+lag, a time segment, ...).  The features of the simulator's ensemble (runs
+with other seeds) give a mean and a spread per bin, and a real series is
+compared through z-scores against that spread: "no gap" is a statistical
+statement.  Bins know their bounds in physical units (frequency in cycles
+per time unit, values in the units of the real data, lags and times in time
+units) for the localisation table.
+
+The ``fast`` indicators (spectrum, histogram, autocorrelation, segment,
+levels) are cheap and drive the parameter searches; the ``full`` ones
+(forecast_error, cross_prediction) are computed once per fitted candidate.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import signal
+
+from ._signature import zscore
+
+#: z-scores are capped at this value so that one bin cannot dominate a gap.
+Z_CAP = 30.0
+
+
+class Indicator:
+    """Base class: ``setup`` once from real + simulated runs, then ``profile`` per series.
+
+    ``profile(z)`` takes a z-scored series and returns ``(features, blocks)``:
+    the feature vector of the whole series and, for indicators with
+    ``blocks > 1``, the features of that many consecutive blocks (used for a
+    stable estimate of the spread; None otherwise).
+    """
+
+    name = "indicator"
+    tier = "fast"
+    feature = ""
+    unit = ""
+    var_floor = 1e-8
+    smooth = 0  # half-width of the running pool of bin variances (0: median per label)
+    blocks = 0
+
+    def setup(self, real, sims, sample_dt, delay_samples):
+        """Fix the binning from the real series and the clean simulated runs."""
+        self.sample_dt = float(sample_dt)
+        self.real_mean = float(np.mean(real))
+        self.real_std = float(np.std(real))
+
+    def profile(self, z, blocks=False):
+        """``(features, block_features or None)`` of a z-scored series."""
+        raise TypeError("Indicator subclasses implement profile().")
+
+    def compute(self, x):
+        """Feature vector of a series (any gain and offset)."""
+        return self.profile(zscore(x))[0]
+
+    def bounds(self):
+        """``(low, high)`` arrays: bin bounds in physical units."""
+        raise TypeError("Indicator subclasses implement bounds().")
+
+    def labels(self):
+        """Per-bin feature label (default: the indicator's ``feature``)."""
+        return [self.feature] * len(self.bounds()[0])
+
+
+def _binned(idx, n_total, n_blocks):
+    """Fractions per bin index of the whole array and of ``n_blocks`` consecutive blocks."""
+    full = np.bincount(idx, minlength=n_total) / idx.size
+    if n_blocks < 2:
+        return np.sqrt(full), None
+    parts = np.array_split(idx, n_blocks)
+    blocks = np.array([np.bincount(p, minlength=n_total) / p.size for p in parts])
+    return np.sqrt(full), np.sqrt(blocks)
+
+
+class Spectrum(Indicator):
+    """log10 Welch power spectral density (Hann, 50 % overlap) per frequency bin.
+
+    Same estimate as :func:`skdelay.validation.power_spectrum` / ``scipy.signal.welch``,
+    computed from one pass over the segment periodograms so that the block
+    spectra (for the spread) come for free.
+    """
+
+    name = "spectrum"
+    feature = "log10 power"
+    unit = "cycles per time unit"
+    var_floor = 0.02**2
+    smooth = 8
+    blocks = 4
+
+    def setup(self, real, sims, sample_dt, delay_samples):
+        super().setup(real, sims, sample_dt, delay_samples)
+        n = len(real)
+        self.nperseg = int(2 ** np.clip(np.floor(np.log2(n / 8)), 6, 10))
+        self.window = signal.get_window("hann", self.nperseg)
+        self.scale = 1.0 / ((self.window**2).sum() / self.sample_dt)
+        self.freqs = np.fft.rfftfreq(self.nperseg, d=self.sample_dt)[1:]
+
+    def profile(self, z, blocks=False):
+        seg = np.lib.stride_tricks.sliding_window_view(z, self.nperseg)[:: self.nperseg // 2]
+        seg = (seg - seg.mean(axis=1, keepdims=True)) * self.window
+        p = np.abs(np.fft.rfft(seg, axis=1)[:, 1:]) ** 2 * (2 * self.scale)
+        if self.nperseg % 2 == 0:
+            p[:, -1] /= 2
+        full = np.log10(p.mean(axis=0) + 1e-30)
+        if not blocks or p.shape[0] < 2 * self.blocks:
+            return full, None
+        groups = np.array_split(p, self.blocks)
+        return full, np.log10(np.array([g.mean(axis=0) for g in groups]) + 1e-30)
+
+    def bounds(self):
+        df = 1.0 / (self.nperseg * self.sample_dt)
+        return self.freqs - df / 2, self.freqs + df / 2
+
+
+class Histogram(Indicator):
+    """sqrt of the fraction of samples per value bin (z-scored), with two overflow bins."""
+
+    name = "histogram"
+    feature = "sqrt probability"
+    unit = "units of real data"
+    var_floor = 1e-4**2
+    smooth = 3
+    blocks = 4
+
+    def setup(self, real, sims, sample_dt, delay_samples):
+        super().setup(real, sims, sample_dt, delay_samples)
+        zs = np.concatenate([zscore(s) for s in sims])
+        lo, hi = float(zs.min()), float(zs.max())
+        pad = 0.02 * (hi - lo)
+        self.lo, self.hi = lo - pad, hi + pad
+        self.n_bins = int(np.clip(len(real) // 400, 16, 48))
+        self.var_floor = 0.25 / len(real)  # Poisson spread of sqrt(count / n)
+        zr = zscore(real)
+        self.zmin, self.zmax = min(float(zr.min()), self.lo), max(float(zr.max()), self.hi)
+
+    def profile(self, z, blocks=False):
+        width = (self.hi - self.lo) / self.n_bins
+        idx = np.floor((z - self.lo) / width).astype(np.int64)
+        idx = np.clip(idx, -1, self.n_bins) + 1
+        return _binned(idx, self.n_bins + 2, self.blocks if blocks else 0)
+
+    def bounds(self):
+        edges = np.linspace(self.lo, self.hi, self.n_bins + 1)
+        zl = np.concatenate([[self.zmin], edges[:-1], [self.hi]])
+        zh = np.concatenate([[self.lo], edges[1:], [self.zmax]])
+        return self.real_mean + self.real_std * zl, self.real_mean + self.real_std * zh
+
+
+class Increments(Indicator):
+    """Shape of the distribution of one-step increments (self-normalised), with overflow bins.
+
+    Separates Gaussian measurement noise (Gaussian increments) from sparse
+    spikes (heavy tails) and ADC steps (a comb) at equal spectral floor.
+    """
+
+    name = "increments"
+    feature = "sqrt probability of increment"
+    unit = "increment / its std"
+    var_floor = 1e-4**2
+    smooth = 2
+    blocks = 4
+    span = 6.0
+    n_bins = 40
+
+    def setup(self, real, sims, sample_dt, delay_samples):
+        super().setup(real, sims, sample_dt, delay_samples)
+        self.var_floor = 0.25 / len(real)  # Poisson spread of sqrt(count / n)
+
+    def profile(self, z, blocks=False):
+        d = np.diff(z)
+        sd = d.std()
+        d = d / (sd if sd > 0 else 1.0)
+        width = 2 * self.span / self.n_bins
+        idx = np.clip(np.floor((d + self.span) / width).astype(np.int64), -1, self.n_bins) + 1
+        return _binned(idx, self.n_bins + 2, self.blocks if blocks else 0)
+
+    def bounds(self):
+        edges = np.linspace(-self.span, self.span, self.n_bins + 1)
+        lo = np.concatenate([[-np.inf], edges[:-1], [self.span]])
+        hi = np.concatenate([[-self.span], edges[1:], [np.inf]])
+        return lo, hi
+
+
+class Autocorrelation(Indicator):
+    """Autocorrelation function at up to 150 lags spanning about three delays."""
+
+    name = "autocorrelation"
+    feature = "autocorrelation"
+    unit = "time units (lag)"
+    var_floor = 1e-3**2
+    smooth = 5
+    blocks = 4
+
+    def setup(self, real, sims, sample_dt, delay_samples):
+        super().setup(real, sims, sample_dt, delay_samples)
+        n = len(real)
+        span = 3 * delay_samples if delay_samples else 100
+        self.max_lag = int(min(max(span, 60), n // 8))
+        self.lags = np.unique(np.linspace(1, self.max_lag, min(self.max_lag, 150)).astype(int))
+
+    def profile(self, z, blocks=False):
+        from .._correlation import autocorrelation
+
+        full = np.asarray(autocorrelation(z, self.max_lag))[self.lags]
+        if not blocks:
+            return full, None
+        parts = [np.asarray(autocorrelation(b, self.max_lag))[self.lags]
+                 for b in np.array_split(z, self.blocks)]
+        return full, np.array(parts)
+
+    def bounds(self):
+        return (self.lags - 0.5) * self.sample_dt, (self.lags + 0.5) * self.sample_dt
+
+
+class Segment(Indicator):
+    """Per time segment: mean, log std and spectral centroid, relative to the first segment.
+
+    Stationary data give zeros within sim-vs-sim spread; a drift shows up in
+    the late segments.
+    """
+
+    name = "segment"
+    unit = "time units"
+    var_floor = 1e-3**2
+    stats = ("segment mean", "segment log std", "segment spectral centroid")
+
+    def setup(self, real, sims, sample_dt, delay_samples):
+        super().setup(real, sims, sample_dt, delay_samples)
+        self.n = len(real)
+        self.n_seg = 8 if self.n >= 8000 else 4
+
+    def profile(self, z, blocks=False):
+        n = (z.size // self.n_seg) * self.n_seg
+        parts = z[:n].reshape(self.n_seg, -1)
+        mean = parts.mean(axis=1)
+        power = np.abs(np.fft.rfft(parts - mean[:, None], axis=1)) ** 2
+        freq = np.fft.rfftfreq(parts.shape[1])
+        rows = np.column_stack([mean, np.log(parts.std(axis=1) + 1e-12),
+                                power @ freq / (power.sum(axis=1) + 1e-300)])
+        rel = rows[1:] - rows[0]
+        return rel.T.reshape(-1), None  # stat-major: every segment of stat 0, then stat 1, ...
+
+    def bounds(self):
+        edges = np.linspace(0, self.n, self.n_seg + 1)[1:] * self.sample_dt
+        lo = np.tile(edges[:-1], len(self.stats))
+        hi = np.tile(edges[1:], len(self.stats))
+        return lo, hi
+
+    def labels(self):
+        return [s for s in self.stats for _ in range(self.n_seg - 1)]
+
+
+class Levels(Indicator):
+    """log10 of the fraction of distinct values (ADC resolution)."""
+
+    name = "levels"
+    feature = "log10 fraction of distinct values"
+    unit = "units of real data"
+    var_floor = 0.02**2
+
+    def setup(self, real, sims, sample_dt, delay_samples):
+        super().setup(real, sims, sample_dt, delay_samples)
+        self.range = (float(np.min(real)), float(np.max(real)))
+
+    def profile(self, z, blocks=False):
+        return np.array([np.log10(np.unique(z).size / z.size)]), None
+
+    def bounds(self):
+        return np.array([self.range[0]]), np.array([self.range[1]])
+
+
+def tau_grid(delay_samples, n):
+    """Lags (samples) scanned by the forecast-error indicator: dense near the delay."""
+    if not delay_samples:
+        top = int(min(200, n // 20))
+        return np.unique(np.geomspace(1, top, 30).astype(int))
+    t0 = int(round(delay_samples))
+    half = max(5, int(0.2 * t0))
+    dense = np.arange(max(1, t0 - half), t0 + half + 1)
+    sparse = np.geomspace(1, 2.2 * t0 + 2, 8).astype(int)
+    return np.unique(np.concatenate([dense, sparse]))
+
+
+def _fe_curve(x, taus, *, m=2, n_queries=400, max_len=10_000):
+    from .._selection import forecast_error_curve
+
+    z = zscore(np.asarray(x)[:max_len])
+    curve = forecast_error_curve(z, m=(m,), tau=[int(t) for t in taus], n_queries=n_queries,
+                                 n_neighbors=20, n_candidates=80, random_state=0)
+    return np.asarray(curve.iloc[:, 0], dtype=float)
+
+
+def _dip(taus, values):
+    """Sub-sample dip position (samples) of a forecast-error curve."""
+    k = int(np.argmin(values))
+    if 0 < k < len(taus) - 1 and taus[k + 1] - taus[k] == 1 == taus[k] - taus[k - 1]:
+        y0, y1, y2 = values[k - 1], values[k], values[k + 1]
+        den = y0 - 2 * y1 + y2
+        if den > 0:
+            return float(taus[k] + 0.5 * (y0 - y2) / den)
+    return float(taus[k])
+
+
+def dip_position(series, *, delay_samples=None):
+    """Forecast-error dip (samples) of one series; scans around ``delay_samples`` if given."""
+    x = np.asarray(series, dtype=float)
+    taus = tau_grid(delay_samples, len(x))
+    return _dip(taus, _fe_curve(x, taus))
+
+
+class ForecastError(Indicator):
+    """log10 of the normalised forecast error sigma_2(tau) (floor: noise; dip: delay)."""
+
+    name = "forecast_error"
+    tier = "full"
+    feature = "log10 forecast error (m=2)"
+    unit = "time units (delay)"
+    var_floor = 0.01**2
+
+    def setup(self, real, sims, sample_dt, delay_samples):
+        super().setup(real, sims, sample_dt, delay_samples)
+        self.taus = tau_grid(delay_samples, len(real))
+
+    def profile(self, z, blocks=False):
+        return np.log10(np.maximum(_fe_curve(z, self.taus), 1e-12)), None
+
+    def dip(self, features):
+        return _dip(self.taus, features)
+
+    def bounds(self):
+        return (self.taus - 0.5) * self.sample_dt, (self.taus + 0.5) * self.sample_dt
+
+
+FAST = (Spectrum, Histogram, Increments, Autocorrelation, Segment, Levels)
+FULL = (ForecastError,)
+
+
+def profiles(indicators, runs, blocks=False):
+    """``{name: (features (runs, bins), blocks (runs, n_blocks, bins) or None)}``.
+
+    Block features (for the spread) are only computed with ``blocks=True``.
+    """
+    zs = [zscore(x) for x in runs]
+    out = {}
+    for name, ind in indicators.items():
+        res = [ind.profile(z, blocks=blocks) for z in zs]
+        full = np.array([r[0] for r in res])
+        blk = None if any(r[1] is None for r in res) else np.array([r[1] for r in res])
+        out[name] = (full, blk)
+    return out
+
+
+def make_indicators(real, sims, sample_dt, delay_samples):
+    """Set-up instances of every indicator, keyed by name (fast ones first)."""
+    out = {}
+    for cls in FAST + FULL:
+        ind = cls()
+        ind.setup(real, sims, sample_dt, delay_samples)
+        out[ind.name] = ind
+    return out
+
+
+# --------------------------------------------------------------------- statistics
+def ensemble_stats(features, indicator, blocks=None):
+    """Mean and variance per bin of an ensemble's features (rows = runs).
+
+    The variance pools the between-run spread with the within-run spread of
+    the features of ``blocks`` (shape (runs, n_blocks, bins), rescaled to the
+    full length by 1 / n_blocks), then shrinks it towards the median of
+    neighbouring bins (same label) and applies the indicator's floor.
+    """
+    f = np.asarray(features, dtype=float)
+    k = f.shape[0]
+    mean = f.mean(axis=0)
+    num, dof = np.zeros_like(mean), 0
+    if k > 1:
+        num += (k - 1) * f.var(axis=0, ddof=1)
+        dof += k - 1
+    if blocks is not None and blocks.shape[1] > 1:
+        nb = blocks.shape[1]
+        num += k * (nb - 1) * blocks.var(axis=1, ddof=1).mean(axis=0) / nb
+        dof += k * (nb - 1)
+    var = num / max(dof, 1)
+    pool = np.empty_like(var)
+    labels = np.asarray(indicator.labels())
+    for lab in dict.fromkeys(labels):
+        idx = np.flatnonzero(labels == lab)
+        v = var[idx]
+        w = indicator.smooth
+        if w and v.size > 2 * w + 1:
+            padded = np.pad(v, w, mode="edge")
+            pool[idx] = np.median(np.lib.stride_tricks.sliding_window_view(padded, 2 * w + 1), axis=1)
+        else:
+            pool[idx] = np.median(v)
+    nu0 = 4.0
+    var = (dof * var + nu0 * pool) / (dof + nu0)
+    var = np.maximum(var, indicator.var_floor)
+    return mean, var, k
+
+
+def zscores(values, mean, var, k):
+    """z-scores of one run against an ensemble of ``k`` runs (capped at ``Z_CAP``)."""
+    z = (np.asarray(values) - mean) / np.sqrt(var * (1.0 + 1.0 / k))
+    return np.clip(z, -Z_CAP, Z_CAP)
+
+
+def indicator_gap(z):
+    """Excess of the mean squared z-score over its null value 1 (>= 0)."""
+    return float(max(np.mean(np.square(z)) - 1.0, 0.0))
+
+
+def pair_gap(real, runs, var):
+    """Excess over 1 of the mean squared distance between ``real`` and each run, in units of
+    ``2 var`` (the spread of the difference of two independent runs); capped per bin."""
+    z = (np.asarray(real)[None, :] - np.asarray(runs)) / np.sqrt(2.0 * var)
+    return indicator_gap(np.clip(z, -Z_CAP, Z_CAP))

@@ -1,0 +1,365 @@
+"""Effects of the measurement chain, applied to a simulated observation.
+
+Amplitudes are relative to the standard deviation of the signal entering the
+effect and levels are in its standard units (``(x - mean) / std``), so the
+parameters do not depend on the gain and offset of the real data.
+Frequencies are in cycles per time unit of the *real* record's clock.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import signal
+from scipy.interpolate import CubicSpline
+
+from ._effects import Effect, _fmt, register_effect
+from ._signature import (
+    centroid,
+    pile_ups,
+    quantization_step,
+    roll_off,
+    spectral_line,
+    spikes,
+    white_floor,
+    zscore,
+)
+
+
+def _rng(random_state):
+    return np.random.default_rng(random_state)
+
+
+def _clamp(value, bound):
+    return float(min(max(value, bound[0]), bound[1]))
+
+
+@register_effect
+class MeasurementNoise(Effect):
+    """White Gaussian noise added by the detector / amplifier.
+
+    Parameter ``noise``: standard deviation relative to the signal's.
+    Signature: a flat floor in the high-frequency power spectrum (and the
+    floor of the forecast error).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from skdelay.gap import MeasurementNoise
+    >>> x = np.sin(np.linspace(0, 60, 5000))
+    >>> y = MeasurementNoise().apply(x, {"noise": 0.1}, random_state=0)
+    >>> round(float(np.std(y - x) / np.std(x)), 2)
+    0.1
+    """
+
+    name = "measurement_noise"
+    stage = 40
+    bounds = {"noise": (1e-4, 3.0)}
+    log_params = ("noise",)
+    units = {"noise": "x signal std"}
+    description = "white measurement noise (detector/amplifier)"
+
+    def guess(self, real, sim, sample_dt):
+        v = min(white_floor(real, sim, sample_dt), 0.9)
+        return {"noise": _clamp(np.sqrt(v / (1.0 - v)) if v > 0 else 1e-3, self.bounds["noise"])}
+
+    def search_bounds(self, guess, context):
+        g = guess["noise"]
+        return {"noise": (max(g / 5, 1e-4), min(g * 5, 3.0))}
+
+    def apply(self, x, params, *, sample_dt=1.0, random_state=None):
+        x = np.asarray(x, dtype=float)
+        return x + params["noise"] * x.std() * _rng(random_state).standard_normal(x.size)
+
+
+@register_effect
+class Quantization(Effect):
+    """Analog-to-digital conversion with a finite step.
+
+    Parameters: ``step`` (grid spacing in signal std units) and ``phase`` (grid
+    position relative to the signal mean, in steps; read off the data, not
+    searched).  Signature: few distinct values on a regular grid.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from skdelay.gap import Quantization
+    >>> x = np.sin(np.linspace(0, 60, 5000))
+    >>> y = Quantization().apply(x, {"step": 0.25, "phase": 0.0})
+    >>> np.unique(y).size
+    12
+    """
+
+    name = "quantization"
+    stage = 60
+    bounds = {"step": (1e-4, 1.5)}
+    log_params = ("step",)
+    units = {"step": "x signal std", "phase": "steps"}
+    description = "ADC quantisation"
+
+    def guess(self, real, sim, sample_dt):
+        step, phase = quantization_step(real)
+        if step is None:
+            # continuous data: a step just below the finest detail of the series
+            z = np.sort(zscore(real))
+            step = float(np.median(np.diff(z)) * 20.0)
+        return {"step": _clamp(step, self.bounds["step"]), "phase": phase}
+
+    def search_bounds(self, guess, context):
+        g = guess["step"]
+        return {"step": (max(g / 1.5, 1e-4), min(g * 1.5, 1.5))}
+
+    def apply(self, x, params, *, sample_dt=1.0, random_state=None):
+        x = np.asarray(x, dtype=float)
+        mu, sd = x.mean(), x.std()
+        step, phase = params["step"], params.get("phase", 0.0)
+        z = (x - mu) / sd
+        q = (np.round(z / step - phase) + phase) * step
+        return mu + sd * q
+
+    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0):
+        step = params["step"] * scale
+        return f"ADC step = {_fmt(step)} (units of real data) = {_fmt(params['step'])} x signal std"
+
+
+@register_effect
+class PeriodicInterference(Effect):
+    """A sinusoidal pick-up such as mains hum.
+
+    Parameters: ``frequency`` (cycles per time unit), ``amplitude`` (relative
+    to the signal std), ``phase`` (radians at t = 0; irrelevant for the
+    statistics, read off the data).  Signature: a narrow spectral line; the
+    frequency is taken from the full-length spectrum, only the amplitude is
+    searched.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from skdelay.gap import PeriodicInterference
+    >>> x = np.zeros(1000)
+    >>> y = PeriodicInterference().apply(
+    ...     x + 1.0, {"frequency": 0.05, "amplitude": 2.0, "phase": 0.0}, sample_dt=1.0)
+    >>> round(float(y.max() - 1.0), 3)  # amplitude is absolute when x is constant
+    2.0
+    """
+
+    name = "periodic_interference"
+    stage = 30
+    bounds = {"amplitude": (1e-3, 3.0)}
+    log_params = ("amplitude",)
+    units = {"frequency": "cycles per time unit", "amplitude": "x signal std", "phase": "rad"}
+    description = "periodic interference (e.g. mains hum)"
+
+    def guess(self, real, sim, sample_dt):
+        freq, amp, phase, _ = spectral_line(real, sim, sample_dt)
+        amp = min(amp, 1.3)
+        rel = amp / np.sqrt(max(1.0 - amp**2 / 2.0, 0.05))
+        return {"frequency": freq, "amplitude": _clamp(rel, self.bounds["amplitude"]),
+                "phase": phase}
+
+    def search_bounds(self, guess, context):
+        g = guess["amplitude"]
+        return {"amplitude": (max(g / 3, 1e-3), min(g * 3, 3.0))}
+
+    def apply(self, x, params, *, sample_dt=1.0, random_state=None):
+        x = np.asarray(x, dtype=float)
+        sd = x.std()
+        t = np.arange(x.size) * sample_dt
+        wave = np.sin(2 * np.pi * params["frequency"] * t + params.get("phase", 0.0))
+        return x + params["amplitude"] * (sd if sd > 0 else 1.0) * wave
+
+    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0):
+        return (f"line at {_fmt(params['frequency'])} cycles per time unit, amplitude "
+                f"{_fmt(params['amplitude'] * scale)} (units of real data) = "
+                f"{_fmt(params['amplitude'])} x signal std")
+
+
+@register_effect
+class Lowpass(Effect):
+    """Finite detector bandwidth: a one-pole low-pass filter.
+
+    Parameter ``cutoff``: -3 dB frequency in cycles per time unit.
+    Signature: the spectrum rolls off faster than the model's above ``cutoff``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from skdelay.gap import Lowpass
+    >>> x = np.random.default_rng(0).standard_normal(20000)
+    >>> y = Lowpass().apply(x, {"cutoff": 0.01}, sample_dt=1.0)
+    >>> bool(y.std() < 0.3 * x.std())
+    True
+    """
+
+    name = "lowpass"
+    stage = 20
+    bounds = {"cutoff": (1e-6, 1e6)}
+    log_params = ("cutoff",)
+    units = {"cutoff": "cycles per time unit"}
+    description = "finite detector bandwidth (low-pass)"
+
+    def guess(self, real, sim, sample_dt):
+        return {"cutoff": roll_off(real, sim, sample_dt)}
+
+    def search_bounds(self, guess, context):
+        nyq = 0.5 / context.sample_dt
+        fmin = 1.0 / (context.n_samples * context.sample_dt)
+        g = min(max(guess["cutoff"], 2 * fmin), 2 * nyq)
+        return {"cutoff": (max(g / 4, fmin), min(g * 4, 4 * nyq))}
+
+    def apply(self, x, params, *, sample_dt=1.0, random_state=None):
+        x = np.asarray(x, dtype=float)
+        a = float(np.exp(-2 * np.pi * params["cutoff"] * sample_dt))
+        b, den = [1.0 - a], [1.0, -a]
+        zi = signal.lfilter_zi(b, den) * x[0]
+        return signal.lfilter(b, den, x, zi=zi)[0]
+
+
+@register_effect
+class Clipping(Effect):
+    """Saturation of the detector or the ADC range.
+
+    Parameters ``low``, ``high``: saturation levels in standard units of the
+    clean signal (``inf`` = that side does not saturate).  Signature: samples
+    piled up at the extreme values.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from skdelay.gap import Clipping
+    >>> x = np.sin(np.linspace(0, 60, 5000))
+    >>> y = Clipping().apply(x, {"low": -np.inf, "high": 1.0})
+    >>> round(float(y.max() / x.std()), 3)
+    1.0
+    """
+
+    name = "clipping"
+    stage = 50
+    bounds = {"low": (-8.0, 1.0), "high": (-1.0, 8.0)}
+    units = {"low": "signal std", "high": "signal std"}
+    description = "saturation (clipping)"
+
+    def guess(self, real, sim, sample_dt):
+        frac_lo, frac_hi = pile_ups(real)
+        zs = np.concatenate([zscore(s[: len(real)]) for s in np.atleast_2d(sim)])
+        out = {"low": -np.inf, "high": np.inf}
+        if frac_hi > 0:
+            out["high"] = float(np.quantile(zs, 1.0 - frac_hi))
+        if frac_lo > 0:
+            out["low"] = float(np.quantile(zs, frac_lo))
+        if not (frac_lo or frac_hi):
+            out["high"] = float(np.quantile(zs, 0.99))
+        return out
+
+    def search_bounds(self, guess, context):
+        out = {}
+        for key in ("low", "high"):
+            g = guess[key]
+            if np.isfinite(g):
+                out[key] = (g - 0.3, g + 0.3)
+        return out
+
+    def apply(self, x, params, *, sample_dt=1.0, random_state=None):
+        x = np.asarray(x, dtype=float)
+        mu, sd = x.mean(), x.std()
+        return np.clip(x, mu + params["low"] * sd, mu + params["high"] * sd)
+
+    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0):
+        sides = []
+        for key, word in (("high", "above"), ("low", "below")):
+            if np.isfinite(params[key]):
+                sides.append(f"saturates {word} {_fmt(offset + scale * params[key])} "
+                             f"(units of real data; {_fmt(params[key])} signal std from the mean)")
+        return "; ".join(sides) or "no saturation"
+
+
+@register_effect
+class Outliers(Effect):
+    """Isolated spikes (glitches, digital transmission errors).
+
+    Parameters: ``rate`` (fraction of samples hit) and ``size`` (typical spike
+    height in signal std; each spike is ``size * U(0.5, 1.5)`` with a random
+    sign).  Signature: isolated samples far from their neighbours.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from skdelay.gap import Outliers
+    >>> x = np.sin(np.linspace(0, 60, 20000))
+    >>> y = Outliers().apply(x, {"rate": 0.01, "size": 8.0}, random_state=0)
+    >>> round(float(np.mean(np.abs(y - x) > 1.0)), 2)
+    0.01
+    """
+
+    name = "outliers"
+    stage = 45
+    bounds = {"rate": (1e-5, 0.1), "size": (1.0, 50.0)}
+    log_params = ("rate", "size")
+    units = {"rate": "per sample", "size": "x signal std"}
+    description = "outliers (isolated spikes)"
+
+    def guess(self, real, sim, sample_dt):
+        rate, size = spikes(real, sim)
+        if rate == 0.0:
+            rate, size = 1e-3, 4.0
+        # spikes inflate the std of the real series
+        size = size * np.sqrt(1.0 + rate * size**2)
+        return {"rate": _clamp(rate, self.bounds["rate"]), "size": _clamp(size, self.bounds["size"])}
+
+    def search_bounds(self, guess, context):
+        r, s = guess["rate"], guess["size"]
+        return {"rate": (max(r / 3, 1e-5), min(r * 3, 0.1)),
+                "size": (max(s / 2, 1.0), min(s * 2, 50.0))}
+
+    def apply(self, x, params, *, sample_dt=1.0, random_state=None):
+        x = np.array(x, dtype=float)
+        rng = _rng(random_state)
+        hit = rng.random(x.size) < params["rate"]
+        k = int(hit.sum())
+        height = params["size"] * rng.uniform(0.5, 1.5, k) * rng.choice([-1.0, 1.0], k)
+        x[hit] += height * x.std()
+        return x
+
+
+@register_effect
+class TimebaseMismatch(Effect):
+    """The real clock runs at another rate than assumed.
+
+    Parameter ``factor``: real sampling step / nominal ``sample_dt`` (the real
+    sample ``k`` was taken at simulated time ``k * factor * sample_dt``).
+    Signature: every time scale (spectral peaks, delay dip) is rescaled.
+    ``apply`` needs ``len(x) >= factor * n`` for ``n`` output samples; it
+    returns ``floor((len(x) - 1) / factor) + 1`` samples.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from skdelay.gap import TimebaseMismatch
+    >>> x = np.sin(2 * np.pi * 0.01 * np.arange(3000))
+    >>> y = TimebaseMismatch().apply(x, {"factor": 1.2})
+    >>> len(y), round(float(np.abs(y - np.sin(2 * np.pi * 0.012 * np.arange(len(y)))).max()), 4)
+    (2500, 0.0)
+    """
+
+    name = "timebase_mismatch"
+    stage = 0
+    bounds = {"factor": (0.7, 1.4)}
+    units = {"factor": "x nominal sampling step"}
+    description = "time-base (sampling-rate) mismatch"
+
+    def guess(self, real, sim, sample_dt):
+        n = len(real)
+        c_real = centroid(real, sample_dt)
+        c_sim = np.mean([centroid(s[:n], sample_dt) for s in np.atleast_2d(sim)])
+        return {"factor": _clamp(c_real / c_sim, self.bounds["factor"])}
+
+    def search_bounds(self, guess, context):
+        g = guess["factor"]
+        return {"factor": (max(g - 0.12, 0.7), min(g + 0.12, 1.4))}
+
+    def apply(self, x, params, *, sample_dt=1.0, random_state=None):
+        x = np.asarray(x, dtype=float)
+        factor = float(params["factor"])
+        n_out = int(np.floor((x.size - 1) / factor)) + 1
+        pos = np.arange(n_out) * factor
+        spline = CubicSpline(np.arange(x.size), x)
+        return spline(pos)

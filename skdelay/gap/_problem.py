@@ -1,0 +1,179 @@
+"""The gap problem: a real series, a simulator, its seed ensemble and the gap of a chain of effects.
+
+:class:`GapProblem` simulates the clean ensemble once, sets up the indicators
+on it, and evaluates the gap between the real series and "simulator + chain
+of effects" (an ensemble with the same seeds, so that evaluations share their
+random numbers and the objective is smooth in the effect parameters).
+"""
+
+from __future__ import annotations
+
+import zlib
+from dataclasses import dataclass, field
+
+import numpy as np
+from joblib import Parallel, delayed
+
+from .._checks import check_random_state
+from ._indicators import ensemble_stats, make_indicators, pair_gap, profiles, zscores
+
+
+class SimulationFailed(RuntimeError):
+    """The simulator (or an effect) failed, diverged or returned unusable data."""
+
+
+def run_simulator(simulator, n, sample_dt, seed, overrides):
+    """``simulator.simulate`` with every failure turned into :class:`SimulationFailed`."""
+    try:
+        x = simulator.simulate(n, sample_dt=sample_dt, random_state=int(seed), **overrides)
+    except Exception as exc:  # any simulator error makes this candidate fail, not the run
+        raise SimulationFailed(f"simulate({_kw(overrides)}) failed: {type(exc).__name__}: {exc}")
+    x = np.asarray(x, dtype=float).reshape(-1)
+    return _check_run(x, n, f"simulate({_kw(overrides)})")
+
+
+def _check_run(x, n, what):
+    if x.size < n:
+        raise SimulationFailed(f"{what} returned {x.size} samples instead of {n}.")
+    if not np.all(np.isfinite(x)):
+        raise SimulationFailed(f"{what} diverged (non-finite values).")
+    if np.ptp(x) == 0:
+        raise SimulationFailed(f"{what} returned a constant series (dead dynamics).")
+    return x
+
+
+def _kw(overrides):
+    return ", ".join(f"{k}={v!r}" for k, v in overrides.items())
+
+
+@dataclass
+class Evaluation:
+    """Gap between the real series and one ensemble (total and per indicator)."""
+
+    gap: float
+    gaps: dict
+    z: dict = field(repr=False)
+    mean: dict = field(repr=False)
+    std: dict = field(repr=False)
+    runs: list = field(default=None, repr=False)
+
+
+class GapProblem:
+    """Real series + simulator + clean ensemble + indicators; evaluates chains of effects.
+
+    Parameters
+    ----------
+    real : ndarray (n,)
+        Checked real series.
+    simulator : object with ``simulate`` and ``params``
+    sample_dt : float
+    n_sims : int
+        Ensemble size (seeds) for the reference and for the final evaluations.
+    search_sims, search_length : int
+        Ensemble size and run length of the cheaper evaluations that drive the
+        parameter searches of simulation effects.
+    random_state : int, RandomState or None
+    n_jobs : int or None
+        joblib workers for the clean ensemble.
+    """
+
+    def __init__(self, real, simulator, *, sample_dt=1.0, n_sims=4, search_sims=2,
+                 search_length=10_000, random_state=None, n_jobs=None):
+        self.real = real
+        self.simulator = simulator
+        self.sample_dt = float(sample_dt)
+        self.n_samples = n = len(real)
+        rng = check_random_state(random_state)
+        self.sim_seeds = rng.randint(0, 2**31 - 1, size=n_sims)
+        self.effect_seed = int(rng.randint(0, 2**31 - 1))
+        self.search_sims = min(search_sims, n_sims)
+        self.search_length = int(min(n, search_length))
+        tau = (getattr(simulator, "params", None) or {}).get("tau")
+        self.delay_samples = float(tau) / self.sample_dt if tau is not None else None
+        runs = Parallel(n_jobs=n_jobs)(
+            delayed(run_simulator)(simulator, n, self.sample_dt, s, {}) for s in self.sim_seeds
+        )
+        self.base = runs
+        self.indicators = make_indicators(real, runs, self.sample_dt, self.delay_samples)
+        self.real_features = {k: ind.compute(real) for k, ind in self.indicators.items()}
+        self.base_features = profiles(self.indicators, runs, blocks=True)
+        self.base_var = {k: ensemble_stats(f, self.indicators[k], b)[1]
+                         for k, (f, b) in self.base_features.items()}
+        fe = self.indicators["forecast_error"]
+        self.dip_real = fe.dip(self.real_features["forecast_error"])
+        self.dip_sim = float(np.mean([fe.dip(f) for f in self.base_features["forecast_error"][0]]))
+        self.before = self._compare({k: f for k, (f, _) in self.base_features.items()}, runs)
+        self.null_gaps = self._null_gaps()
+
+    # ----------------------------------------------------------------- runs
+    def _effect_seed(self, j, name):
+        return np.random.SeedSequence([self.effect_seed, int(j), zlib.crc32(name.encode())])
+
+    def ensemble(self, chain, tier="full"):
+        """Runs of simulator + chain (list of ``(effect, params)``)."""
+        sim_part = [(e, p) for e, p in chain if e.target == "simulation"]
+        obs_part = sorted(((e, p) for e, p in chain if e.target == "observation"),
+                          key=lambda item: item[0].stage)
+        overrides = {}
+        for eff, params in sim_part:
+            overrides.update(eff.overrides(params, self.simulator))
+        if overrides:
+            if tier == "fast":
+                n, seeds = self.search_length, self.sim_seeds[: self.search_sims]
+            else:
+                n, seeds = self.n_samples, self.sim_seeds
+            runs = [run_simulator(self.simulator, n, self.sample_dt, s, overrides) for s in seeds]
+        else:
+            runs = self.base
+        out = []
+        for j, x in enumerate(runs):
+            for eff, params in obs_part:
+                x = np.asarray(eff.apply(x, params, sample_dt=self.sample_dt,
+                                         random_state=self._effect_seed(j, eff.name)), dtype=float)
+                _check_run(x, 16, f"effect {eff.name!r} with {params}")
+            out.append(x)
+        return out
+
+    def evaluate(self, chain, tier="full", keep_runs=False):
+        """:class:`Evaluation` of real vs simulator + chain; ``tier='fast'`` skips costly indicators."""
+        runs = self.ensemble(chain, tier)
+        names = [k for k, ind in self.indicators.items() if tier == "full" or ind.tier == "fast"]
+        feats = profiles({k: self.indicators[k] for k in names}, runs)
+        return self._compare({k: f for k, (f, _) in feats.items()}, runs if keep_runs else None)
+
+    def _compare(self, feats, runs=None):
+        """Real vs an ensemble, every bin in units of the clean sim-vs-sim spread.
+
+        The gap of an indicator compares the real features with *each* run of
+        the ensemble (``z = (real - run) / sqrt(2 var_sim)``), so an effect
+        cannot hide a discrepancy by making its runs scatter widely; ``z`` in
+        the result is that of the ensemble mean (for localisation).
+        """
+        gaps, zs, means, stds = {}, {}, {}, {}
+        for k, f in feats.items():
+            var = self.base_var[k]
+            real = self.real_features[k]
+            gaps[k] = pair_gap(real, f, var)
+            means[k] = f.mean(axis=0)
+            zs[k] = zscores(real, means[k], var, f.shape[0])
+            stds[k] = np.sqrt(var)
+        return Evaluation(float(sum(gaps.values())), gaps, zs, means, stds, runs)
+
+    def _null_gaps(self):
+        """Gap of each clean run against the others (leave-one-out): the no-gap distribution."""
+        k_runs = len(self.base)
+        out = []
+        for j in range(k_runs):
+            total = 0.0
+            for k, (f, blocks) in self.base_features.items():
+                others = np.delete(f, j, axis=0)
+                ob = None if blocks is None else np.delete(blocks, j, axis=0)
+                var = ensemble_stats(others, self.indicators[k], ob)[1]
+                total += pair_gap(f[j], others, var)
+            out.append(total)
+        return np.array(out)
+
+    def fast_gap_before(self):
+        """Gap before any effect on the fast indicators only (the search objective's scale)."""
+        return float(sum(g for k, g in self.before.gaps.items()
+                         if self.indicators[k].tier == "fast"))

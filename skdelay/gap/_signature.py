@@ -1,0 +1,178 @@
+"""Signatures that effects leave in data, read off to get initial parameter guesses.
+
+Pure numpy/scipy on the measured series and clean simulated observations:
+a spectral line (hum frequency and amplitude), the set of distinct values
+(ADC step), piled-up extreme values (saturation), isolated spikes (outliers),
+the high-frequency floor (white noise), the roll-off (detector bandwidth) and
+the spectral centroid (time base).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import signal
+
+
+def zscore(x):
+    """``(x - mean) / std`` (gain and offset are nuisance everywhere in the gap module)."""
+    x = np.asarray(x, dtype=float)
+    sd = x.std()
+    return (x - x.mean()) / (sd if sd > 0 else 1.0)
+
+
+def welch_psd(x, sample_dt, nperseg=1024):
+    """One-sided Welch PSD of the z-scored series (frequencies in cycles per time unit)."""
+    x = zscore(x)
+    nperseg = int(min(nperseg, max(16, len(x) // 4)))
+    f, p = signal.welch(x, fs=1.0 / sample_dt, nperseg=nperseg, detrend="constant")
+    return f, p
+
+
+def ensemble_psd(sims, sample_dt, n, nperseg=1024):
+    """Mean Welch PSD of the first ``n`` samples of every simulated run."""
+    psds = [welch_psd(s[:n], sample_dt, nperseg)[1] for s in np.atleast_2d(sims)]
+    f = welch_psd(np.atleast_2d(sims)[0][:n], sample_dt, nperseg)[0]
+    return f, np.mean(psds, axis=0)
+
+
+def spectral_line(real, sims, sample_dt, nperseg=1024):
+    """Strongest narrow line of ``real`` absent from ``sims``.
+
+    Returns ``(frequency, amplitude, phase, prominence)``: frequency refined on
+    the full-length zero-padded DFT (far finer than one Welch bin), amplitude
+    of the sinusoid in standard units of the real series, phase at t = 0
+    (sine convention) and the line's height over the simulated spectrum
+    (log10 units).
+    """
+    n = len(real)
+    f, pr = welch_psd(real, sample_dt, nperseg)
+    _, ps = ensemble_psd(sims, sample_dt, n, nperseg)
+    ratio = np.log10(pr[1:] + 1e-300) - np.log10(ps[1:] + 1e-300)
+    # narrowness: excess over the running median of the ratio itself
+    base = _running_median(ratio, 9)
+    excess = ratio - base
+    k = int(np.argmax(excess)) + 1
+    z = zscore(real)
+    window = np.hanning(n)
+    pad = 8
+    spec = np.abs(np.fft.rfft(z * window, pad * n))
+    fgrid = np.fft.rfftfreq(pad * n, d=sample_dt)
+    df = f[1] - f[0]
+    inside = np.flatnonzero(np.abs(fgrid - f[k]) <= 1.5 * df)
+    j = int(inside[np.argmax(spec[inside])])
+    freq = float(fgrid[j])
+    if 0 < j < spec.size - 1:  # parabolic interpolation of the log magnitude
+        a, b, c = np.log(spec[j - 1: j + 2] + 1e-300)
+        den = a - 2 * b + c
+        if den < 0:
+            freq += float(0.5 * (a - c) / den) * (fgrid[1] - fgrid[0])
+    t = np.arange(n) * sample_dt
+    coef = _dft(z * window, t, [freq])[0]
+    amp = float(2.0 * np.abs(coef) / window.sum())
+    c0 = _dft(z, t, [freq])[0]
+    phase = float(np.angle(c0) + np.pi / 2.0) % (2.0 * np.pi)
+    return freq, amp, phase, float(excess[k - 1])
+
+
+def _dft(x, t, freqs):
+    return np.array([np.exp(-2j * np.pi * f * t) @ x for f in np.atleast_1d(freqs)])
+
+
+def _running_median(y, width):
+    half = width // 2
+    padded = np.pad(y, half, mode="edge")
+    view = np.lib.stride_tricks.sliding_window_view(padded, width)
+    return np.median(view, axis=1)
+
+
+def quantization_step(real):
+    """``(step, phase)`` of the value grid in standard units, or ``(None, 0)`` if continuous.
+
+    ``step`` is the spacing of the distinct values divided by the series'
+    std; ``phase`` in [0, 1) places the grid relative to the series' mean.
+    """
+    x = np.asarray(real, dtype=float)
+    values = np.unique(x)
+    if values.size > 0.5 * x.size or values.size < 2:
+        return None, 0.0
+    gaps = np.diff(values)
+    tiny = 1e-9 * (values[-1] - values[0])
+    gaps = gaps[gaps > tiny]
+    step = float(np.min(gaps))
+    multiples = gaps / step
+    if np.mean(np.abs(multiples - np.round(multiples)) < 0.05) < 0.9:
+        return None, 0.0
+    sd = x.std()
+    phase = float(((values[0] - x.mean()) / step) % 1.0)
+    return step / sd, phase
+
+
+def pile_ups(real, *, min_fraction=5e-4, min_count=5):
+    """Fractions of samples piled up at the minimum and at the maximum value."""
+    x = np.asarray(real, dtype=float)
+    span = x.max() - x.min()
+    tol = 1e-9 * span
+    n = x.size
+    lo = np.count_nonzero(x <= x.min() + tol)
+    hi = np.count_nonzero(x >= x.max() - tol)
+    frac_lo = lo / n if (lo >= min_count and lo / n >= min_fraction) else 0.0
+    frac_hi = hi / n if (hi >= min_count and hi / n >= min_fraction) else 0.0
+    return frac_lo, frac_hi
+
+
+def spikes(real, sims, *, threshold=8.0):
+    """``(rate, size)`` of isolated spikes in ``real`` (size in std units of ``real``).
+
+    A sample is a spike when its deviation from the 5-point running median is
+    larger than ``threshold`` times the 99.9th percentile deviation seen in the
+    clean simulations (so the dynamics' own sharp features do not count).
+    """
+    z = zscore(real)
+    dev = np.abs(z - _running_median(z, 5))
+    ref = [np.abs(zscore(s) - _running_median(zscore(s), 5)) for s in np.atleast_2d(sims)[:2]]
+    scale = max(float(np.quantile(np.concatenate(ref), 0.999)), 1e-6)
+    hits = dev > max(threshold * scale, 0.5)
+    if not np.any(hits):
+        return 0.0, 0.0
+    return float(np.mean(hits)), float(np.median(dev[hits]))
+
+
+def white_floor(real, sims, sample_dt, nperseg=1024):
+    """Variance (standard units of ``real``) of white noise explaining the high-frequency excess."""
+    n = len(real)
+    f, pr = welch_psd(real, sample_dt, nperseg)
+    _, ps = ensemble_psd(sims, sample_dt, n, nperseg)
+    top = f >= 0.75 * f[-1]
+    excess = np.median(np.maximum(pr[top] - ps[top], 0.0))
+    return float(excess / (2.0 * sample_dt))
+
+
+def centroid(x, sample_dt, nperseg=1024):
+    """Spectral centroid (cycles per time unit) of the z-scored series."""
+    f, p = welch_psd(x, sample_dt, nperseg)
+    return float(np.sum(f * p) / np.sum(p))
+
+
+def onepole_gain2(f, cutoff, sample_dt):
+    """Power gain of the discrete one-pole low-pass ``y += (1 - a) (x - y)``, ``a = exp(-2 pi fc dt)``."""
+    a = np.exp(-2 * np.pi * cutoff * sample_dt)
+    return (1 - a) ** 2 / (1 - 2 * a * np.cos(2 * np.pi * f * sample_dt) + a**2)
+
+
+def roll_off(real, sims, sample_dt, nperseg=1024):
+    """Cut-off frequency of a one-pole low-pass that best explains the spectral ratio."""
+    n = len(real)
+    f, pr = welch_psd(real, sample_dt, nperseg)
+    _, ps = ensemble_psd(sims, sample_dt, n, nperseg)
+    f, pr, ps = f[1:], pr[1:], ps[1:]
+    keep = ps > 1e-12 * ps.max()
+    f, ratio = f[keep], np.log(pr[keep] / ps[keep])
+    weights = np.sqrt(ps[keep] / ps[keep].max())
+    best, best_err = f[-1], np.inf
+    for fc in np.geomspace(f[0], f[-1] * 2, 80):
+        model = np.log(onepole_gain2(f, fc, sample_dt))
+        c = np.sum(weights * (ratio - model)) / np.sum(weights)
+        err = np.sum(weights * (ratio - model - c) ** 2)
+        if err < best_err:
+            best, best_err = fc, err
+    return float(best)

@@ -1,0 +1,215 @@
+"""Effects that change the simulation itself, passed as ``simulate(..., **overrides)``.
+
+``dynamical_noise`` (noise inside the feedback loop), ``delay_mismatch``
+(another delay than the model's) and ``parameter_drift`` (a parameter that
+differs or drifts linearly over the record; ``start == end`` is a constant
+mismatch such as a retuned bias voltage).
+"""
+
+from __future__ import annotations
+
+import numbers
+
+import numpy as np
+
+from ._effects import Effect, _fmt, register_effect
+from ._signature import ensemble_psd, welch_psd
+
+
+def _param(simulator, key):
+    params = getattr(simulator, "params", None) or {}
+    if key not in params:
+        raise ValueError(
+            f"the simulator has no parameter {key!r} (its params: {sorted(params)}); this "
+            "effect does not apply to it."
+        )
+    return float(params[key])
+
+
+@register_effect
+class DynamicalNoise(Effect):
+    """Noise inside the feedback loop (``simulate(dynamical_noise=D)``).
+
+    Parameter ``dynamical_noise``: the simulator's noise intensity ``D`` (its
+    own units, e.g. per square-root time unit).  Signature: a high-frequency
+    excess falling like ``1 / f**2`` (integrated noise), unlike the flat floor
+    of measurement noise; the guess inverts that law.
+
+    Examples
+    --------
+    >>> from skdelay.gap import DynamicalNoise
+    >>> DynamicalNoise().overrides({"dynamical_noise": 0.01}, simulator=None)
+    {'dynamical_noise': 0.01}
+    """
+
+    name = "dynamical_noise"
+    target = "simulation"
+    bounds = {"dynamical_noise": (1e-7, 1e3)}
+    log_params = ("dynamical_noise",)
+    units = {"dynamical_noise": "simulator noise intensity"}
+    description = "dynamical noise (inside the feedback loop)"
+
+    def guess(self, real, sim, sample_dt):
+        n = len(real)
+        sims = np.atleast_2d(sim)
+        f, pr = welch_psd(real, sample_dt)
+        _, ps = ensemble_psd(sims, sample_dt, n)
+        top = f >= 0.25 * f[-1]
+        excess = np.maximum(pr[top] - ps[top], 0.0)
+        sd = float(np.mean([s[:n].std() for s in sims]))
+        est = np.median(sd * 2 * np.pi * f[top] * np.sqrt(excess / 2.0))
+        return {"dynamical_noise": float(max(est, 1e-3 * sd))}
+
+    def search_bounds(self, guess, context):
+        g = guess["dynamical_noise"]
+        return {"dynamical_noise": (g / 4.0, g * 4.0)}
+
+    def overrides(self, params, simulator):
+        return {"dynamical_noise": float(params["dynamical_noise"])}
+
+
+@register_effect
+class DelayMismatch(Effect):
+    """The real delay differs from the simulator's ``tau``.
+
+    Parameter ``tau`` (time units).  Signature: the forecast-error dip sits at
+    another lag; the guess moves the model's delay by the shift of the dip,
+    the search scans a few samples around it.
+
+    Examples
+    --------
+    >>> from skdelay.gap import DelayMismatch
+    >>> DelayMismatch().overrides({"tau": 18.0}, simulator=None)
+    {'tau': 18.0}
+    """
+
+    name = "delay_mismatch"
+    target = "simulation"
+    bounds = {"tau": (1e-9, 1e12)}
+    units = {"tau": "time units"}
+    description = "delay mismatch"
+
+    def check(self, params, simulator=None):
+        if simulator is not None:
+            _param(simulator, "tau")
+
+    def initial(self, problem):
+        """Guess from the dips of the forecast-error curves computed by the problem."""
+        tau0 = _param(problem.simulator, "tau")
+        shift = (problem.dip_real - problem.dip_sim) * problem.sample_dt
+        return {"tau": float(max(tau0 + shift, 2 * problem.sample_dt))}
+
+    def guess(self, real, sim, sample_dt):
+        from ._indicators import dip_position
+
+        # the dip of the real data's forecast error is its delay (in samples)
+        return {"tau": float(dip_position(real) * sample_dt)}
+
+    def search_bounds(self, guess, context):
+        dt = context.sample_dt
+        g = guess["tau"]
+        return {"tau": (max(g - 1.5 * dt, dt), g + 1.5 * dt)}
+
+    def overrides(self, params, simulator):
+        return {"tau": float(params["tau"])}
+
+    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0):
+        return f"delay tau = {_fmt(params['tau'])} time units ({_fmt(params['tau'] / sample_dt)} samples)"
+
+
+@register_effect
+class ParameterDrift(Effect):
+    """A model parameter that differs from its nominal value or drifts over the record.
+
+    Parameters: ``parameter`` (name, chosen by the fit among the simulator's
+    numeric parameters other than ``tau``), ``start`` and ``end`` (values at
+    the beginning and end of the record; passed as ``simulate(**{parameter:
+    (start, end)})``).  Signature: segment statistics that change along the
+    record; the search scans a few end values per parameter and refines the
+    best one.
+
+    Examples
+    --------
+    >>> from skdelay.gap import ParameterDrift
+    >>> ParameterDrift().overrides({"parameter": "b", "start": 0.1, "end": 0.11}, simulator=None)
+    {'b': (0.1, 0.11)}
+    """
+
+    name = "parameter_drift"
+    target = "simulation"
+    bounds = {"start": (-np.inf, np.inf), "end": (-np.inf, np.inf)}
+    units = {"start": "parameter units", "end": "parameter units"}
+    description = "parameter drift / mismatch"
+    #: relative end values tried for every parameter in the coarse scan
+    scan = (-0.12, -0.05, 0.05, 0.12)
+    exclude = ("tau",)
+
+    def candidates(self, simulator):
+        params = getattr(simulator, "params", None) or {}
+        out = [k for k, v in params.items()
+               if k not in self.exclude and isinstance(v, numbers.Real)
+               and not isinstance(v, bool) and np.isfinite(v) and v != 0]
+        if not out:
+            raise ValueError(
+                "the simulator exposes no numeric parameter besides tau to drift; "
+                "parameter_drift does not apply."
+            )
+        return out
+
+    def check(self, params, simulator=None):
+        if simulator is not None:
+            self.candidates(simulator)
+
+    def initial(self, problem):
+        key = self.candidates(problem.simulator)[0]
+        v = _param(problem.simulator, key)
+        return {"parameter": key, "start": v, "end": v}
+
+    def guess(self, real, sim, sample_dt):
+        return {"parameter": None, "start": np.nan, "end": np.nan}
+
+    def search(self, problem, guess, objective):
+        """Coarse scan of ``end`` (``start`` nominal) per parameter, parabolic refinement of
+        the best one, then the same change as a constant offset."""
+        best = (np.inf, None, None)
+        for key in self.candidates(problem.simulator):
+            v0 = _param(problem.simulator, key)
+            for rel in self.scan:
+                gap = objective({"parameter": key, "start": v0, "end": v0 * (1 + rel)})
+                if gap < best[0]:
+                    best = (gap, key, rel)
+        gap0, key, rel = best
+        if key is None:
+            raise ValueError("every drift tried made the simulator fail.")
+        v0 = _param(problem.simulator, key)
+        grid = sorted(self.scan)
+        i = grid.index(rel)
+        step = 0.5 * min(abs(grid[j] - rel) for j in (i - 1, i + 1) if 0 <= j < len(grid))
+        pts = {rel: gap0}
+        for r in (rel - step, rel + step):
+            pts[r] = objective({"parameter": key, "start": v0, "end": v0 * (1 + r)})
+        r_best = min(pts, key=pts.get)
+        (a, fa), (b, fb), (c, fc) = sorted(pts.items())
+        den = (b - a) * (fb - fc) - (b - c) * (fb - fa)
+        if np.isfinite([fa, fb, fc]).all() and den != 0:
+            vertex = b - 0.5 * ((b - a) ** 2 * (fb - fc) - (b - c) ** 2 * (fb - fa)) / den
+            if a < vertex < c and all(abs(vertex - r) > 1e-3 for r in pts):
+                pts[vertex] = objective({"parameter": key, "start": v0, "end": v0 * (1 + vertex)})
+                r_best = min(pts, key=pts.get)
+        params = {"parameter": key, "start": v0, "end": v0 * (1 + r_best)}
+        # the same change as a constant offset (a retuned rather than a drifting parameter)
+        const = dict(params, start=params["end"])
+        if objective(const) < pts[r_best]:
+            params = const
+        return params
+
+    def overrides(self, params, simulator):
+        start, end = float(params["start"]), float(params["end"])
+        value = start if start == end else (start, end)
+        return {params["parameter"]: value}
+
+    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0):
+        p, s, e = params["parameter"], params["start"], params["end"]
+        if s == e:
+            return f"{p} = {_fmt(s)} throughout the record (constant mismatch)"
+        return f"{p} drifts from {_fmt(s)} to {_fmt(e)} over the record"

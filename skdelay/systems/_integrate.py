@@ -1,0 +1,260 @@
+"""Fixed-step RK4 integration of a DDE with one delayed component (numba).
+
+The generic engine for every system of :mod:`skdelay.systems`.  A system is
+``dx/dt = f(x(t), x_l(t - tau))`` with ``x`` in R^d and one fed-back component
+``l``; it supplies ``f`` and its Jacobian as numba-compilable functions::
+
+    rhs(x, xd, p, out)      out[i] = f_i(x, xd; p)
+    jac(x, xd, p, jx, jd)   jx[i, j] = df_i/dx_j,  jd[i] = df_i/dxd
+
+(``xd`` is the delayed value, ``p`` the float64 parameter vector) and is
+identified inside the kernels by a *tag*: an instance of a namedtuple class
+made for it by :func:`register`.  :func:`system_rhs` / :func:`system_jac` are
+resolved at compile time from the tag's type, so the system's functions are
+inlined into the one generic kernel, which numba compiles and caches once per
+system (``cache=True`` keys the cache on the tag type, whose name carries a
+hash of the system's source -- see :mod:`._tags`).
+
+Scheme
+------
+Classical 4-stage Runge-Kutta with step ``dt``.  The delayed value at the stage
+times ``t_n``, ``t_n + dt/2`` and ``t_n + dt`` is read from a ring buffer of
+past values of ``x_l`` (one per step) by cubic Lagrange interpolation on four
+neighbouring grid points (exact, without interpolation, when the stage time
+falls on the grid), so ``tau`` need not be a multiple of ``dt`` and the scheme
+stays fourth-order accurate.  Grid points newer than ``t_n`` are never used,
+which requires ``tau >= dt``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import inspect
+
+import numpy as np
+from numba import njit
+from numba.extending import overload
+
+from ._tags import tag_class
+
+#: tag class -> (rhs, jac) of every registered system
+REGISTRY = {}
+
+
+
+def _source_hash(*funcs):
+    h = hashlib.sha1()
+    for f in funcs:
+        f = getattr(f, "py_func", f)
+        try:
+            h.update(inspect.getsource(f).encode())
+        except (OSError, TypeError):
+            h.update(f.__code__.co_code)
+            h.update(repr(f.__code__.co_consts).encode())
+    return h.hexdigest()[:12]
+
+
+def register(name, rhs, jac):
+    """Register a system's ``rhs``/``jac`` and return its tag class.
+
+    ``rhs`` and ``jac`` are plain Python functions (or numba dispatchers, whose
+    ``py_func`` is used); they are compiled with ``inline="always"`` so that
+    they are inlined into the kernels (a non-inlined call costs ~10x the
+    arithmetic of a small system).  The tag class (see :mod:`._tags`) is named
+    after the system and a hash of the two functions' source, so cached
+    kernels are recompiled when the equations change.
+    """
+    tag_cls = tag_class(f"{name}_{_source_hash(rhs, jac)}")
+    REGISTRY[tag_cls] = (njit(inline="always")(getattr(rhs, "py_func", rhs)),
+                         njit(inline="always")(getattr(jac, "py_func", jac)))
+    return tag_cls
+
+
+def system_rhs(tag, x, xd, p, out):
+    """Evaluate the right-hand side of the system ``tag`` (numba only)."""
+    raise TypeError("system_rhs is only callable from numba-compiled code.")
+
+
+def system_jac(tag, x, xd, p, jx, jd):
+    """Evaluate the Jacobian of the system ``tag`` (numba only)."""
+    raise TypeError("system_jac is only callable from numba-compiled code.")
+
+
+@overload(system_rhs, inline="always")
+def _system_rhs(tag, x, xd, p, out):
+    rhs = REGISTRY[tag.instance_class][0]
+
+    def impl(tag, x, xd, p, out):
+        rhs(x, xd, p, out)
+
+    return impl
+
+
+@overload(system_jac, inline="always")
+def _system_jac(tag, x, xd, p, jx, jd):
+    jac = REGISTRY[tag.instance_class][1]
+
+    def impl(tag, x, xd, p, jx, jd):
+        jac(x, xd, p, jx, jd)
+
+    return impl
+
+
+@njit(cache=True)
+def ipow(x, n):
+    """``x ** n``, by repeated squaring when ``n`` is a small non-negative integer.
+
+    (libm ``pow`` costs about ten times more and would dominate e.g. Mackey-Glass.)
+    """
+    if n == np.floor(n) and 0.0 <= n <= 64.0:
+        k = int(n)
+        r = 1.0
+        b = x
+        while k:
+            if k & 1:
+                r *= b
+            b *= b
+            k >>= 1
+        return r
+    return x**n
+
+
+@njit(cache=True)
+def stencil(shift, starts, weights, c):
+    """Cubic Lagrange stencil for the value at (relative) grid position ``shift <= 0``.
+
+    Fills row ``c`` of ``starts`` / ``weights``: the value is
+    ``sum_i weights[c, i] * h[n + starts[c] + i]`` with ``h[n]`` the current
+    value.  Positions on the grid get the exact weights ``(0, 1, 0, 0)``
+    (tolerance 1e-9 steps, against round-off in ``tau / dt``).
+    """
+    j = np.floor(shift)
+    r = shift - j
+    if r > 1.0 - 1e-9:
+        j += 1.0
+        r = 0.0
+    if r < 1e-9:
+        starts[c] = int(j) - 1
+        weights[c, 0] = 0.0
+        weights[c, 1] = 1.0
+        weights[c, 2] = 0.0
+        weights[c, 3] = 0.0
+        return
+    s = j - 1.0
+    if s + 3.0 > 0.0:  # never read the future: shift the stencil back
+        s = -3.0
+    t = shift - s
+    starts[c] = int(s)
+    weights[c, 0] = -(t - 1.0) * (t - 2.0) * (t - 3.0) / 6.0
+    weights[c, 1] = t * (t - 2.0) * (t - 3.0) / 2.0
+    weights[c, 2] = -t * (t - 1.0) * (t - 3.0) / 2.0
+    weights[c, 3] = t * (t - 1.0) * (t - 2.0) / 6.0
+
+
+@njit(cache=True)
+def stencils(tau_steps, starts, weights):
+    """The three RK4 stencils (stage offsets 0, 1/2, 1) for a delay of ``tau_steps`` steps."""
+    for c in range(3):
+        stencil(0.5 * c - tau_steps, starts, weights, c)
+
+
+@njit(cache=True)
+def delayed(current, ring, slot, starts, weights, c):
+    """Interpolated history value (stencil ``c``); ``slot`` = ring position of the current step."""
+    m_ring = ring.shape[0]
+    acc = 0.0
+    for i in range(4):
+        w = weights[c, i]
+        if w != 0.0:
+            off = starts[c] + i
+            if off == 0:
+                acc += w * current
+            else:
+                idx = slot + off
+                if idx < 0:
+                    idx += m_ring
+                acc += w * ring[idx]
+    return acc
+
+
+@njit(cache=True)
+def rk4_stages(tag, x, xd0, xdh, xd1, p, dt, k, xs):
+    """Evaluate the four RK4 stages: ``xs[s]`` stage states, ``k[s]`` slopes."""
+    d = x.shape[0]
+    for i in range(d):
+        xs[0, i] = x[i]
+    system_rhs(tag, xs[0], xd0, p, k[0])
+    for i in range(d):
+        xs[1, i] = x[i] + 0.5 * dt * k[0, i]
+    system_rhs(tag, xs[1], xdh, p, k[1])
+    for i in range(d):
+        xs[2, i] = x[i] + 0.5 * dt * k[1, i]
+    system_rhs(tag, xs[2], xdh, p, k[2])
+    for i in range(d):
+        xs[3, i] = x[i] + dt * k[2, i]
+    system_rhs(tag, xs[3], xd1, p, k[3])
+
+
+@njit(cache=True)
+def rk4_update(x, dt, k):
+    """``x += dt/6 (k1 + 2 k2 + 2 k3 + k4)``."""
+    for i in range(x.shape[0]):
+        x[i] += dt / 6.0 * (k[0, i] + 2.0 * k[1, i] + 2.0 * k[2, i] + k[3, i])
+
+
+@njit(cache=True)
+def integrate_chunk(tag, x, ring, counter, l, p, p0, dp, tau0, dtau, drift, rec_start, rec_len,
+                    dt, every, noise, out):
+    """Advance ``len(out) * every`` steps, recording ``x_l`` before every ``every`` steps.
+
+    State: ``x`` (d,), ``ring`` (M,) with ``ring[m % M] = x_l(t_m)`` for past
+    steps ``m``, ``counter[0]`` = current step ``n``.  With ``drift`` the
+    parameters ``p`` and the delay move linearly from ``p0``/``tau0`` to
+    ``p0 + dp``/``tau0 + dtau`` over steps ``rec_start .. rec_start + rec_len``.
+    ``noise`` is empty or holds the pre-scaled increments (steps, d) added after
+    each step (Euler-Maruyama).  Returns the number of samples written before the
+    state became non-finite (``len(out)`` when all is well).
+    """
+    d = x.shape[0]
+    m_ring = ring.shape[0]
+    k = np.empty((4, d))
+    xs = np.empty((4, d))
+    n = counter[0]
+    slot = n % m_ring
+    use_noise = noise.shape[0] > 0
+    starts = np.empty(3, dtype=np.int64)
+    weights = np.empty((3, 4))
+    stencils(tau0 / dt, starts, weights)
+    step = 0
+    for i in range(out.shape[0]):
+        out[i] = x[l]
+        if not np.isfinite(x[l]):
+            counter[0] = n
+            return i
+        for _ in range(every):
+            if drift:
+                frac = (n - rec_start) / rec_len
+                frac = min(max(frac, 0.0), 1.0)
+                for q in range(p.shape[0]):
+                    p[q] = p0[q] + dp[q] * frac
+                stencils((tau0 + dtau * frac) / dt, starts, weights)
+            cur = x[l]
+            xd0 = delayed(cur, ring, slot, starts, weights, 0)
+            xdh = delayed(cur, ring, slot, starts, weights, 1)
+            xd1 = delayed(cur, ring, slot, starts, weights, 2)
+            ring[slot] = cur
+            rk4_stages(tag, x, xd0, xdh, xd1, p, dt, k, xs)
+            rk4_update(x, dt, k)
+            if use_noise:
+                for q in range(d):
+                    x[q] += noise[step, q]
+            step += 1
+            n += 1
+            slot += 1
+            if slot == m_ring:
+                slot = 0
+    counter[0] = n
+    for q in range(d):
+        if not np.isfinite(x[q]):
+            return out.shape[0] - 1
+    return out.shape[0]

@@ -1,0 +1,206 @@
+"""Effect library of the sim-to-real gap module: registry, application, signature guesses."""
+
+import numpy as np
+import pytest
+
+from skdelay.gap import (
+    EFFECTS,
+    Effect,
+    get_effect,
+    register_effect,
+    unregister_effect,
+)
+from skdelay.gap._signature import (
+    pile_ups,
+    quantization_step,
+    roll_off,
+    spectral_line,
+    spikes,
+    white_floor,
+    zscore,
+)
+
+CONTRACT = {"measurement_noise", "dynamical_noise", "quantization", "periodic_interference",
+            "lowpass", "delay_mismatch", "parameter_drift", "clipping", "outliers",
+            "timebase_mismatch"}
+
+
+def smooth_signal(n=20000, seed=3):
+    """A smooth, aperiodic test signal (sum of incommensurate sines, slow AM)."""
+    t = np.arange(n, dtype=float)
+    rng = np.random.default_rng(seed)
+    ph = rng.uniform(0, 2 * np.pi, 4)
+    return (np.sin(0.031 * t + ph[0]) + 0.6 * np.sin(0.0537 * t + ph[1])
+            + 0.3 * np.sin(0.0123 * t + ph[2]) * np.sin(0.0071 * t + ph[3]))
+
+
+def smooth_ensemble(n=20000):
+    return np.array([smooth_signal(n, s) for s in (11, 12)])
+
+
+# ------------------------------------------------------------------ registry
+def test_registry_has_every_contract_effect():
+    assert CONTRACT <= set(EFFECTS)
+    for name in CONTRACT:
+        eff = get_effect(name)
+        assert eff.name == name
+        assert eff.target in ("observation", "simulation")
+    assert {n for n in CONTRACT if EFFECTS[n].target == "simulation"} == {
+        "dynamical_noise", "delay_mismatch", "parameter_drift"}
+
+
+def test_register_custom_effect_and_errors():
+    class Gain2(Effect):
+        name = "gain_step_test"
+        bounds = {"size": (0.1, 2.0)}
+
+        def apply(self, x, params, *, sample_dt=1.0, random_state=None):
+            return x * (1 + params["size"])
+
+    try:
+        assert register_effect(Gain2) is Gain2
+        assert get_effect("gain_step_test").apply(np.ones(3), {"size": 1.0})[0] == 2.0
+        with pytest.raises(ValueError, match="already registered"):
+            register_effect(type("Other", (Gain2,), {}))
+    finally:
+        unregister_effect("gain_step_test")
+    assert "gain_step_test" not in EFFECTS
+
+    class BadName(Gain2):
+        name = "Bad Name!"
+
+    with pytest.raises(ValueError, match="not valid"):
+        register_effect(BadName)
+
+    class NoApply(Effect):
+        name = "no_apply_test"
+
+    with pytest.raises(TypeError, match="does not define apply"):
+        register_effect(NoApply)
+    with pytest.raises(TypeError, match="subclass of skdelay.gap.Effect"):
+        register_effect(object)
+    with pytest.raises(ValueError, match="unknown effect 'hum'.*periodic_interference"):
+        get_effect("hum")
+    with pytest.raises(ValueError, match="no effect named"):
+        unregister_effect("never_registered")
+
+
+# ------------------------------------------------------------------ applying
+def test_measurement_noise_and_outliers_amplitudes():
+    x = smooth_signal()
+    y = get_effect("measurement_noise").apply(x, {"noise": 0.2}, random_state=0)
+    assert np.std(y - x) / np.std(x) == pytest.approx(0.2, rel=0.03)
+    y = get_effect("outliers").apply(x, {"rate": 0.005, "size": 6.0}, random_state=1)
+    hit = np.abs(y - x) > 0
+    assert hit.mean() == pytest.approx(0.005, rel=0.25)
+    heights = np.abs(y - x)[hit] / np.std(x)
+    assert 3.0 <= heights.min() and heights.max() <= 9.0
+    assert np.median(heights) == pytest.approx(6.0, rel=0.15)
+
+
+def test_quantization_grid_and_guess():
+    x = 3.0 + 2.0 * smooth_signal()
+    q = get_effect("quantization")
+    y = q.apply(x, {"step": 0.1, "phase": 0.25})
+    levels = np.unique(y)
+    steps = np.diff(levels)
+    assert np.allclose(steps, 0.1 * x.std(), rtol=1e-9)
+    step, phase = quantization_step(y)
+    assert step == pytest.approx(0.1 * x.std() / y.std(), rel=1e-6)
+    y2 = q.apply(x, {"step": step * y.std() / x.std(), "phase": phase})
+    assert np.unique(y2).size == pytest.approx(levels.size, abs=1)
+    assert quantization_step(x) == (None, 0.0)
+
+
+def test_periodic_interference_and_line_guess():
+    x = smooth_signal()
+    sims = smooth_ensemble()
+    hum = get_effect("periodic_interference")
+    y = hum.apply(x, {"frequency": 0.1234, "amplitude": 0.05, "phase": 1.0}, sample_dt=0.5)
+    freq, amp, phase, prominence = spectral_line(y, sims, 0.5)
+    assert freq == pytest.approx(0.1234, abs=0.1 / (len(y) * 0.5))
+    g = hum.guess(y, sims, 0.5)
+    assert g["amplitude"] == pytest.approx(0.05, rel=0.1)
+    assert prominence > 1.0
+
+
+def test_lowpass_gain_at_cutoff_and_roll_off_guess():
+    t = np.arange(40000)
+    fc = 0.02
+    sine = np.sin(2 * np.pi * fc * t)
+    y = get_effect("lowpass").apply(sine, {"cutoff": fc})
+    assert np.std(y[2000:]) / np.std(sine[2000:]) == pytest.approx(1 / np.sqrt(2), rel=0.05)
+    noise = np.random.default_rng(0).standard_normal((3, 40000))
+    filtered = get_effect("lowpass").apply(noise[0], {"cutoff": 0.05})
+    assert roll_off(filtered, noise[1:], 1.0) == pytest.approx(0.05, rel=0.3)
+
+
+def test_clipping_levels_and_pile_up_guess():
+    x = smooth_signal()
+    sims = smooth_ensemble()
+    clip = get_effect("clipping")
+    y = clip.apply(x, {"low": -np.inf, "high": 1.2})
+    assert y.max() == pytest.approx(x.mean() + 1.2 * x.std())
+    lo_frac, hi_frac = pile_ups(y)
+    assert lo_frac == 0.0 and hi_frac == pytest.approx(np.mean(zscore(x) >= 1.2), rel=1e-6)
+    g = clip.guess(y, sims, 1.0)
+    assert not np.isfinite(g["low"]) and g["high"] == pytest.approx(1.2, abs=0.15)
+
+
+def test_timebase_resampling_and_centroid_guess():
+    x = smooth_signal(30000)
+    tb = get_effect("timebase_mismatch")
+    y = tb.apply(x, {"factor": 1.15})
+    assert len(y) == int((len(x) - 1) / 1.15) + 1
+    t = np.arange(len(y)) * 1.15
+    ref = smooth_signal(30000)
+    assert np.allclose(y[:100], np.interp(t[:100], np.arange(len(ref)), ref), atol=1e-3)
+    g = tb.guess(y[:20000], np.array([smooth_signal(20000, s) for s in (3, 3)]), 1.0)
+    assert g["factor"] == pytest.approx(1.15, abs=0.05)
+
+
+def test_white_floor_and_spike_guesses():
+    x = smooth_signal()
+    sims = smooth_ensemble()
+    noisy = get_effect("measurement_noise").apply(x, {"noise": 0.05}, random_state=2)
+    g = get_effect("measurement_noise").guess(noisy, sims, 1.0)
+    assert g["noise"] == pytest.approx(0.05, rel=0.2)
+    assert white_floor(x, sims, 1.0) < 1e-6
+    spiky = get_effect("outliers").apply(x, {"rate": 0.003, "size": 8.0}, random_state=3)
+    rate, size = spikes(spiky, sims)
+    assert rate == pytest.approx(0.003, rel=0.25)
+    assert spikes(x, sims) == (0.0, 0.0)
+
+
+def test_simulation_effects_overrides():
+    class Sim:
+        params = {"tau": 17.0, "b": 0.1, "label": "x"}
+
+    assert get_effect("delay_mismatch").overrides({"tau": 18.5}, Sim()) == {"tau": 18.5}
+    assert get_effect("dynamical_noise").overrides({"dynamical_noise": 0.01}, Sim()) == {
+        "dynamical_noise": 0.01}
+    drift = get_effect("parameter_drift")
+    assert drift.overrides({"parameter": "b", "start": 0.1, "end": 0.12}, Sim()) == {
+        "b": (0.1, 0.12)}
+    assert drift.overrides({"parameter": "b", "start": 0.11, "end": 0.11}, Sim()) == {"b": 0.11}
+    assert drift.candidates(Sim()) == ["b"]
+
+    class NoTau:
+        params = {"gain": 2.0}
+
+    with pytest.raises(ValueError, match="no parameter 'tau'"):
+        get_effect("delay_mismatch").check({"tau": 3.0}, NoTau())
+
+    class OnlyTau:
+        params = {"tau": 5.0}
+
+    with pytest.raises(ValueError, match="no numeric parameter besides tau"):
+        drift.check({}, OnlyTau())
+
+
+def test_describe_reports_units_of_real_data():
+    clip = get_effect("clipping")
+    text = clip.describe({"low": -np.inf, "high": 1.5}, scale=2.0, offset=10.0)
+    assert "13" in text and "above" in text
+    q = get_effect("quantization").describe({"step": 0.01, "phase": 0.0}, scale=100.0)
+    assert "ADC step = 1 " in q

@@ -1,0 +1,109 @@
+"""Free runs of fitted two-window models: exactness, boundedness, escapes, other delays."""
+
+import warnings
+
+import numpy as np
+import pytest
+from sklearn.pipeline import make_pipeline
+
+from skdelay._embedding import TwoWindowEmbedding, required_lags
+from skdelay._kdtree import build_tree, query_knn
+from skdelay._local_linear import LocalLinearDelayMap
+from skdelay._windows import lagged_windows
+from skdelay.dynamics import ModelEscapeError, ModelEscapeWarning, Trajectory, iterate
+
+
+def _fit(x, m, tau, k=20, **kw):
+    X, y = lagged_windows(x, required_lags(m, tau))
+    return make_pipeline(TwoWindowEmbedding(m=m, tau=tau),
+                         LocalLinearDelayMap(n_neighbors=k, **kw)).fit(X, y)
+
+
+@pytest.fixture(scope="module")
+def mg17():
+    from skdelay.systems import MackeyGlass
+
+    return MackeyGlass(tau=17.0).simulate(20_000, random_state=0)
+
+
+def test_kdtree_matches_brute_force():
+    rng = np.random.default_rng(0)
+    data = rng.normal(size=(3000, 6))
+    data[:200] = data[0]  # duplicates
+    tree = build_tree(data)
+    d, i = np.empty(15), np.empty(15, dtype=np.int64)
+    stack = np.empty(256, dtype=np.int64)
+    for q in rng.normal(size=(50, 6)):
+        query_knn(data, tree, q, 15, d, i, stack)
+        brute = np.sort(((data - q) ** 2).sum(1))[:15]
+        np.testing.assert_allclose(d, brute)
+
+
+@pytest.mark.parametrize("m, radius, order", [(3, None, 1), (2, 0.05, 1), (2, None, 0)])
+def test_each_step_equals_model_predict(mg17, m, radius, order):
+    tau = 17
+    model = _fit(mg17, m, tau, radius=radius, order=order, ridge=1e-2)
+    dim = required_lags(m, tau)
+    run = iterate(model, mg17[:dim], 300)
+    full = np.r_[mg17[:dim], run, 0.0]
+    X, _ = lagged_windows(full, dim)
+    V = TwoWindowEmbedding(m=m, tau=tau).fit_transform(X)[:300]
+    np.testing.assert_allclose(run, model[-1].predict(V), rtol=0, atol=1e-10)
+
+
+def test_free_run_stays_on_attractor(mg17):
+    model = _fit(mg17, 3, 17)
+    run = iterate(model, mg17[-500:], 20_000)
+    assert isinstance(run, Trajectory) and run.shape == (20_000,) and not run.escaped
+    assert mg17.min() - 0.05 < run.min() and run.max() < mg17.max() + 0.05
+    # same invariant measure: mean/std within a few percent, not a fixed point or cycle
+    assert abs(run.mean() - mg17.mean()) < 0.03 * mg17.mean()
+    assert abs(run.std() - mg17.std()) < 0.1 * mg17.std()
+    assert np.unique(np.round(run[-2000:], 4)).size > 500
+
+
+def test_dynamical_noise_is_reproducible(mg17):
+    model = _fit(mg17, 2, 17)
+    a = iterate(model, mg17[:100], 500, noise=0.002, random_state=3)
+    b = iterate(model, mg17[:100], 500, noise=0.002, random_state=3)
+    c = iterate(model, mg17[:100], 500)
+    np.testing.assert_array_equal(a, b)
+    assert np.abs(a - c).max() > 1e-3
+
+
+def test_escape_from_support_warns_and_cuts(mg17):
+    model = _fit(mg17, 2, 17)
+    with pytest.warns(ModelEscapeWarning, match="escaped after 0 of 50 steps"):
+        run = iterate(model, np.full(40, 5.0), 50)
+    assert run.escaped and run.escape_step == 0 and run.size == 0
+    with pytest.raises(ModelEscapeError, match="support"):
+        iterate(model, np.full(40, 5.0), 50, on_escape="raise")
+    assert issubclass(ModelEscapeError, ValueError)
+    # huge dynamical noise drives it away after some steps: values up to there are returned
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ModelEscapeWarning):
+            iterate(model, mg17[:100], 2000, noise=0.3, random_state=0)
+    run = iterate(model, mg17[:100], 2000, noise=0.3, random_state=0, on_escape="ignore")
+    assert run.escaped and 0 < run.size < 2000 and np.all(np.isfinite(run))
+    assert run.min() > mg17.min() - 0.4 and run.max() < mg17.max() + 0.4
+
+
+def test_iterate_input_errors(mg17):
+    model = _fit(mg17, 2, 17)
+    with pytest.raises(ValueError, match="at least 18"):
+        iterate(model, mg17[:10], 5)
+    with pytest.raises(ValueError, match="at least 31"):
+        iterate(model, mg17[:20], 5, tau=30)
+    with pytest.raises(ValueError, match="on_escape"):
+        iterate(model, mg17[:50], 5, on_escape="stop")
+    with pytest.raises(ValueError, match="noise"):
+        iterate(model, mg17[:50], 5, noise=-1.0)
+    with pytest.raises(TypeError, match="Pipeline"):
+        iterate(object(), mg17[:50], 5)
+
+
+def test_pair_and_other_delay(mg17):
+    emb, reg = _fit(mg17, 2, 17)
+    run = iterate((emb, reg), mg17[:100], 1000, tau=16)
+    assert run.size == 1000
