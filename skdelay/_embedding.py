@@ -79,17 +79,21 @@ class TwoWindowEmbedding(TransformerMixin, BaseEstimator):
 
     i.e. lag columns ``0..m-1`` and ``c..c+m-1`` (:func:`two_window_columns`).
     For ``m = 2`` this is ``(s_t, s_{t-1}, s_{t+1-tau}, s_{t-tau})``; larger
-    windows grow on both sides (one more newer sample for odd ``m``).  With
-    this choice ``tau`` *is* the physical delay in samples: for data from a
-    delay system with ``tau0 = T0 * sample_dt`` the one-step forecast-error
-    dip of every ``m >= 2`` is centred on ``tau = T0``.  (A window that only
-    grows into the past, the paper's ``s_{n-T}, ..., s_{n-T-m+1}``, has a dip
-    bottom spanning ``T0 - m + 2 .. T0``, so its centre drifts by ``(m-2)/2``
-    samples with ``m``; verified on Mackey-Glass with ``tau0 = 17, 30, 100``.)
-    For ``tau <= (m - 1) // 2 + 1`` the second window starts at lag 0, i.e.
-    it repeats the first window.  The vector needs
+    windows grow on both sides, odd ones by one more newer sample.  With this
+    choice ``tau`` *is* the physical delay in samples: for data from a delay
+    system with ``tau0 = T0 * sample_dt`` the windows that hold the delayed
+    pair form the bottom of the one-step forecast-error dip, which is centred
+    on ``tau = T0`` for every ``m >= 2`` (half a sample later for odd ``m``,
+    which :func:`~skdelay.locate_dips` takes into account), so
+    ``DelaySelectorCV.delay_`` is ``T0`` within one sample -- checked on
+    Mackey-Glass data with ``T0 = 17, 30, 50, 100`` and ``m = 2..5``.  (A
+    second window that only grows into the past, the paper's
+    ``s_{n-T}, ..., s_{n-T-m+1}``, has its dip bottom at ``T0-m+2 .. T0``:
+    its centre would drift by ``(m-2)/2`` samples with ``m``.)  For
+    ``tau <= (m - 1) // 2 + 1`` the second window starts at lag 0, i.e. it
+    repeats the first window.  The vector needs
     ``n_lags >= required_lags(m, tau) = max(tau + m // 2, m)`` lag columns,
-    the state dimension of the iterated map.
+    which is also the state dimension of the iterated map.
 
     Parameters
     ----------

@@ -134,7 +134,7 @@ def fig_space_time(result):
 
     plt = _plt()
     d = result.delay
-    candidates = np.arange(max(2, d - 5), d + 15.5, 0.5)
+    candidates = np.arange(max(2, d - 2), d + max(4, d // 5) + 0.25, 0.5)
     period, _ = best_space_time_period(result.series[: 60 * (d + 20)], candidates)
     run = result.runs.get(result.m, np.empty(0))
     panels = [("data", result.series)]
@@ -151,18 +151,18 @@ def fig_space_time(result):
 # ----------------------------------------------------------------------------------- pages
 def _row_table(result, scale=1.0, unit="1/time unit"):
     r = result.summary_row()
-    table = pd.DataFrame({
-        "delay [samples]": [f"{r['delay']} +- {r['delay_error']:.1f}"],
-        "delay [time]": [r["delay_time"]],
-        "m": [r["m"]],
-        "N positive": [r["N"]],
-        f"lambda_max [{unit}]": [r["lambda_max"] * scale],
-        "Kaplan-Yorke D_KY": [r["D_KY"]],
-        f"h_KS [{unit}]": [r["h_KS"] * scale],
-        f"D_KY/tau [{unit}]": [r["D_KY/tau"] * scale],
-        "minimal faithful m": ["none" if r["minimal_m"] is None else r["minimal_m"]],
-    })
-    return table.set_index("delay [samples]")
+    rows = {
+        "delay [samples]": f"{r['delay']} +- {r['delay_error']:.1f}",
+        "delay [time units]": f"{r['delay_time']:g}",
+        "window length m of the model": r["m"],
+        "positive Lyapunov exponents N": r["N"],
+        f"largest exponent lambda_max [{unit}]": f"{r['lambda_max'] * scale:.4g}",
+        "Kaplan-Yorke dimension D_KY": f"{r['D_KY']:.2f}",
+        f"KS entropy h_KS [{unit}]": f"{r['h_KS'] * scale:.4g}",
+        f"dimension density D_KY/tau [{unit}]": f"{r['D_KY/tau'] * scale:.4g}",
+        "minimal faithful m (m_d)": "none" if r["minimal_m"] is None else r["minimal_m"],
+    }
+    return pd.Series(rows, name="value").rename_axis("quantity")
 
 
 def _safe(fn, *args):
@@ -178,7 +178,7 @@ def analysis_sections(result, *, scale=1.0, unit="1/time unit", prefix=""):
     dt = result.sample_dt
     delays = result.delays.rename(columns={"delay": "dip centre", "half_width": "half width",
                                            "tau_min": "grid minimum", "tau_used": "model tau"})
-    val = result.validation.copy()
+    val = result.validation.T
     rev = result.revivals
     intro = (
         f"<p>{html.escape(result.name)}: {result.series.size} samples, sampling interval "

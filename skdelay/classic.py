@@ -18,22 +18,22 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from scipy.signal import find_peaks
 from numba import njit
+from scipy.signal import find_peaks
 from scipy.spatial import cKDTree
 
 from ._checks import check_positive_int, check_random_state, check_series
 
 __all__ = [
-    "delay_embedding",
-    "poincare_section",
-    "noise_reduction",
-    "correlation_sum",
-    "correlation_dimension",
     "CorrelationDimension",
-    "maximal_lyapunov_exponent",
     "MaximalLyapunovExponent",
+    "correlation_dimension",
+    "correlation_sum",
+    "delay_embedding",
     "false_nearest_neighbors",
+    "maximal_lyapunov_exponent",
+    "noise_reduction",
+    "poincare_section",
 ]
 
 
@@ -137,6 +137,56 @@ def poincare_section(series, *, sample_dt=1.0, kind="maxima", prominence=None):
     return (peaks + delta) * float(sample_dt), values
 
 
+@njit(cache=True)
+def _local_projection(X, rows, idx, w, weights, n_normal):
+    """Correction of each delay vector towards its local q-dimensional manifold.
+
+    In the metric ``weights`` (large at both ends), the neighbourhood
+    covariance ``Gamma = R C R`` is diagonalised; the component of ``R (x - centre)``
+    along the ``n_normal`` least-variance directions is removed.
+    """
+    n, k = idx.shape
+    dim = X.shape[1]
+    theta = np.zeros((n, dim))
+    centre = np.empty(dim)
+    gamma = np.empty((dim, dim))
+    dev = np.empty(dim)
+    z = np.empty(dim)
+    for a in range(n):
+        tot = 0.0
+        centre[:] = 0.0
+        for b in range(k):
+            wb = w[a, b]
+            if wb > 0.0:
+                tot += wb
+                for c in range(dim):
+                    centre[c] += wb * X[idx[a, b], c]
+        for c in range(dim):
+            centre[c] /= tot
+        gamma[:, :] = 0.0
+        for b in range(k):
+            wb = w[a, b]
+            if wb > 0.0:
+                for c in range(dim):
+                    dev[c] = (X[idx[a, b], c] - centre[c]) * weights[c]
+                for c in range(dim):
+                    for e in range(c + 1):
+                        gamma[c, e] += wb * dev[c] * dev[e]
+        for c in range(dim):
+            for e in range(c):
+                gamma[e, c] = gamma[c, e]
+        _, vecs = np.linalg.eigh(gamma)  # ascending eigenvalues
+        for c in range(dim):
+            z[c] = (X[rows[a], c] - centre[c]) * weights[c]
+        for v in range(n_normal):
+            proj = 0.0
+            for c in range(dim):
+                proj += vecs[c, v] * z[c]
+            for c in range(dim):
+                theta[a, c] -= proj * vecs[c, v] / weights[c]
+    return theta
+
+
 def noise_reduction(series, *, dim=7, q=2, lag=1, n_neighbors=30, radius=None,
                     iterations=3, end_weight=1000.0, chunk_size=20_000, workers=1):
     """Local projective noise reduction (Grassberger et al. 1993, TISEAN ``ghkss``).
@@ -168,7 +218,7 @@ def noise_reduction(series, *, dim=7, q=2, lag=1, n_neighbors=30, radius=None,
     end_weight : float, default=1000.0
         Penalty for corrections of the first and last coordinate.
     chunk_size : int, default=20000
-        Vectors processed at once (memory ~ chunk_size * n_neighbors * dim).
+        Vectors whose neighbours are searched at once (memory ~ chunk_size * n_neighbors).
     workers : int, default=1
         Threads for the kd-tree queries (-1 = all cores).
 
@@ -212,17 +262,8 @@ def noise_reduction(series, *, dim=7, q=2, lag=1, n_neighbors=30, radius=None,
             ok = count >= dim + 1
             if not ok.any():
                 continue
-            rows, idx, w, count = rows[ok], idx[ok], w[ok], count[ok]
-            w /= count[:, None]
-            nb = X[idx]                                      # (c, k, dim)
-            centre = np.einsum("ck,ckd->cd", w, nb)
-            dev = (nb - centre[:, None, :]) * weights
-            gamma = np.einsum("ck,cki,ckj->cij", w, dev, dev)
-            _, vecs = np.linalg.eigh(gamma)                  # ascending eigenvalues
-            normals = vecs[:, :, : dim - q]
-            z = (X[rows] - centre) * weights
-            dz = -np.einsum("cin,cn->ci", normals, np.einsum("cin,ci->cn", normals, z))
-            theta = dz / weights
+            rows, idx, w = rows[ok], idx[ok], w[ok]
+            theta = _local_projection(X, rows, idx, w, weights, dim - q)
             target = rows[:, None] + offsets[None, :]
             total += np.bincount(target.ravel(), theta.ravel(), minlength=s.size)
             hits += np.bincount(target.ravel(), minlength=s.size)
@@ -426,6 +467,7 @@ def correlation_dimension(series, dims=range(1, 9), lag=1, *, radii=None, theile
     scaling_range : (float, float), optional
         Fixed ``(r_low, r_high)`` instead of the automatic choice.
     n_converged : int, default=3
+        Number of largest dimensions averaged (clipped to ``len(dims)``).
     window : int, default=8
         Number of consecutive radii in the automatic scaling range.
     min_pairs : int, default=500
@@ -445,7 +487,7 @@ def correlation_dimension(series, dims=range(1, 9), lag=1, *, radii=None, theile
     True
     """
     dims = [check_positive_int(d, name="dims") for d in np.atleast_1d(dims)]
-    n_converged = check_positive_int(n_converged, name="n_converged", maximum=len(dims))
+    n_converged = min(check_positive_int(n_converged, name="n_converged"), len(dims))
     s = check_series(series, min_length=(max(dims) - 1) * lag + 3)
     if radii is None:
         radii = np.ptp(s) * np.geomspace(1e-3, 1.0, 48)
@@ -535,9 +577,9 @@ def _auto_fit_range(t, S, fraction=0.4, saturation=0.8):
         raise ValueError("the divergence curve does not grow: no positive exponent is visible "
                          "(increase max_steps, or the data are not chaotic).")
     end = max(int(np.argmax(rise >= saturation * top)) + 1, 5)
-    length = max(4, int(round(fraction * end)))
+    length = max(4, round(fraction * end))
     best, best_score = (0, min(end, t.size)), np.inf
-    for a in range(0, max(1, end - length + 1)):
+    for a in range(max(1, end - length + 1)):
         tt, ss = t[a:a + length], S[a:a + length]
         slope, icpt = np.polyfit(tt, ss, 1)
         if not slope > 0:

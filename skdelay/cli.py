@@ -97,6 +97,16 @@ def parse_m(text):
     return tuple(sorted(set(values)))
 
 
+def _parse_delays(text):
+    try:
+        values = tuple(int(v) for v in str(text).split(",") if v.strip())
+    except ValueError:
+        values = ()
+    if not values:
+        raise argparse.ArgumentTypeError(f"expected delays like 50,150,400; got {text!r}")
+    return values
+
+
 def parse_params(items):
     """Parse ``k=v`` pairs: a number, or ``start:end`` for a linear drift."""
     params = {}
@@ -133,8 +143,8 @@ def build_parser():
                             help="replace the output directory if it exists (atomically)")
     common_out.add_argument("--quiet", "-q", action="store_true",
                             help="no progress display, only the summary")
-    common_out.add_argument("--n-jobs", type=int, default=None, metavar="J",
-                            help="parallel workers (joblib; -1 = all cores)")
+    common_out.add_argument("--n-jobs", type=int, default=-1, metavar="J",
+                            help="parallel workers (joblib; default -1 = all cores)")
     common_out.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
 
     an = sub.add_parser(
@@ -170,8 +180,8 @@ def build_parser():
                     help="output directory (default demo-report)")
     de.add_argument("--n-samples", type=_int_at_least(2000), default=None, metavar="N",
                     help="samples per data set (default 100000)")
-    de.add_argument("--delays", type=parse_m, default=None, metavar="D",
-                    help=argparse.SUPPRESS)
+    de.add_argument("--delays", type=_parse_delays, default=None, metavar="D",
+                    help="laser data sets to analyse (default 50,150,400)")
 
     ga = sub.add_parser(
         "gap", parents=[common_out],
@@ -252,7 +262,7 @@ def _prepare_analyze(args):
         start = time.perf_counter()
         result = _analysis.analyze_series(
             series.to_numpy(), **options, n_jobs=args.n_jobs, random_state=args.seed,
-            verbose=0 if args.quiet else 1, progress=say,
+            verbose=0 if args.quiet else 10, progress=say,
             name=f"{Path(args.file).name}" + (f" [{series.name}]" if args.column else ""),
         )
         say("writing results and report")
@@ -267,15 +277,21 @@ def _prepare_demo(args):
     from . import _analysis
     from ._io import check_output_directory
 
+    from .datasets import LASER_DELAYS
+
     check_output_directory(args.out, force=args.force)
-    delays = args.delays or (50, 150, 400)
+    delays = args.delays or LASER_DELAYS
+    unknown = [d for d in delays if d not in LASER_DELAYS]
+    if unknown:
+        raise UsageError(f"no embedded laser data for delay(s) {unknown}; choose from "
+                         f"{', '.join(map(str, LASER_DELAYS))}")
 
     def run():
         say = _progress(args)
         start = time.perf_counter()
         demo = _analysis.run_demo(
             delays=delays, n_samples=args.n_samples, n_jobs=args.n_jobs,
-            random_state=args.seed, verbose=0 if args.quiet else 1, progress=say,
+            random_state=args.seed, verbose=0 if args.quiet else 10, progress=say,
         )
         say("writing results and report")
         demo.save(args.out, force=args.force)

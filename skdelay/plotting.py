@@ -9,13 +9,13 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
-    "plot_forecast_error",
-    "plot_power_spectra",
-    "plot_histograms",
-    "plot_lyapunov_spectrum",
-    "plot_space_time",
     "plot_correlation_dimension",
     "plot_divergence",
+    "plot_forecast_error",
+    "plot_histograms",
+    "plot_lyapunov_spectrum",
+    "plot_power_spectra",
+    "plot_space_time",
 ]
 
 
@@ -148,7 +148,7 @@ def plot_histograms(series, *, bins=50, ax=None):
     return fig
 
 
-def plot_lyapunov_spectrum(spectra, *, tau=None, rescaled=False, sample_dt=1.0, ax=None):
+def plot_lyapunov_spectrum(spectra, *, tau=None, rescaled=False, ax=None):
     """Lyapunov spectra, raw (``lambda_i`` vs ``i``) or rescaled (``lambda_i tau`` vs ``i / tau``).
 
     For long delays the rescaled spectra of different delays collapse onto
@@ -161,9 +161,6 @@ def plot_lyapunov_spectrum(spectra, *, tau=None, rescaled=False, sample_dt=1.0, 
     tau : float or dict of str -> float, optional
         Delay(s) in time units; required for ``rescaled=True``.
     rescaled : bool, default=False
-    sample_dt : float, default=1.0
-        Unused for ``LyapunovSpectrum`` input (already per time unit); kept
-        for symmetry with the other plots.
     ax : matplotlib Axes, optional
 
     Returns

@@ -17,7 +17,7 @@ import pandas as pd
 
 from ._checks import check_positive_int, check_series
 
-__all__ = ["space_time", "best_space_time_period"]
+__all__ = ["best_space_time_period", "space_time"]
 
 
 def _check_period(period, n):
@@ -74,7 +74,7 @@ def space_time(series, period, *, n_columns=None, start=0.0):
     s = check_series(series, min_length=5)
     period = _check_period(period, s.size)
     if n_columns is None:
-        n_columns = max(1, int(round(period)))
+        n_columns = max(1, round(period))
     n_columns = check_positive_int(n_columns, name="n_columns")
     start = float(start)
     if not 0.0 <= start < s.size - 1:

@@ -31,16 +31,16 @@ from ._windows import lagged_windows
 
 __all__ = [
     "Comparison",
-    "cross_prediction_error",
-    "cross_prediction_by_region",
-    "power_spectrum",
-    "value_histogram",
-    "histogram_distance",
-    "spectrum_distance",
-    "autocorrelation_distance",
     "autocorrelation",
+    "autocorrelation_distance",
+    "cross_prediction_by_region",
+    "cross_prediction_error",
+    "histogram_distance",
     "mutual_information",
+    "power_spectrum",
     "revival_peak",
+    "spectrum_distance",
+    "value_histogram",
 ]
 
 _WHERE_COLUMNS = ["low", "high", "x_value", "y_value", "excess"]
@@ -76,7 +76,7 @@ def _where(low, high, xv, yv):
 # --------------------------------------------------------------------------- cross prediction
 def _cross_residuals(x, y, *, m, tau, order, n_neighbors, theiler_window, n_queries,
                      random_state, ridge, radius, n_jobs):
-    """Rows of X that were predicted, X's two-window vectors and the residuals."""
+    """Rows of x that were predicted, x's lag matrix and the residuals."""
     m = check_positive_int(m, name="m")
     tau = check_positive_int(tau, name="tau")
     k = check_positive_int(n_neighbors, name="n_neighbors")
@@ -109,7 +109,7 @@ def _cross_residuals(x, y, *, m, tau, order, n_neighbors, theiler_window, n_quer
         Xy, ty = lagged_windows(sy, n_lags)
         model.fit(Xy[:, cols], ty)
         pred = model.predict(Vx[rows])
-    return rows, Vx, pred - tx[rows], sx.std()
+    return rows, Xx, pred - tx[rows], sx.std()
 
 
 def cross_prediction_error(x, y=None, *, m, tau, order=0, n_neighbors=30,
@@ -216,13 +216,15 @@ def cross_prediction_by_region(x, y, *, m, tau, order=0, n_neighbors=30, theiler
         raise ValueError("cross_prediction_by_region compares x with a database y; pass y "
                          "(for the error of x alone use cross_prediction_error(x)).")
     n_regions = check_positive_int(n_regions, name="n_regions")
-    kw = dict(m=m, tau=tau, order=order, n_neighbors=n_neighbors, theiler_window=theiler_window,
-              n_queries=n_queries, ridge=ridge, radius=radius, n_jobs=n_jobs)
-    rows, Vx, resid, scale = _cross_residuals(x, y, random_state=random_state, **kw)
-    rows_s, _, resid_self, _ = _cross_residuals(x, None, random_state=random_state, **kw)
-    now, delayed = Vx[rows, 0], Vx[rows, int(m)]
+    kw = {"m": m, "tau": tau, "order": order, "n_neighbors": n_neighbors,
+          "theiler_window": theiler_window, "n_queries": n_queries, "ridge": ridge,
+          "radius": radius, "n_jobs": n_jobs}
+    rows, Xx, resid, scale = _cross_residuals(x, y, random_state=random_state, **kw)
+    _, _, resid_self, _ = _cross_residuals(x, None, random_state=random_state, **kw)
+    col_now, col_del = Xx[:, 0], Xx[:, int(tau) - 1]  # s_n and s_{n+1-tau}
+    now, delayed = col_now[rows], col_del[rows]
     q = np.linspace(0.0, 1.0, n_regions + 1)
-    e_now, e_del = np.quantile(Vx[:, 0], q), np.quantile(Vx[:, int(m)], q)
+    e_now, e_del = np.quantile(col_now, q), np.quantile(col_del, q)
     i_now = np.clip(np.searchsorted(e_now, now, side="right") - 1, 0, n_regions - 1)
     i_del = np.clip(np.searchsorted(e_del, delayed, side="right") - 1, 0, n_regions - 1)
     out = []
@@ -387,8 +389,9 @@ def spectrum_distance(x, y, *, sample_dt=1.0, nperseg=1024, normalise=True, n_ba
     -------
     Comparison
         ``distance`` = rms over frequencies (f > 0) of ``log10 Px - log10 Py``;
-        ``where``: one row per band, ``x_value``/``y_value`` the mean
-        ``log10`` PSD in the band, ``excess`` their difference.
+        ``where``: one row per band, ``x_value``/``y_value`` the ``log10``
+        of the power in the band (a fraction of the total if ``normalise``),
+        ``excess`` their difference (> 0: ``x`` has more power there).
 
     Examples
     --------
@@ -399,8 +402,12 @@ def spectrum_distance(x, y, *, sample_dt=1.0, nperseg=1024, normalise=True, n_ba
     >>> x = np.sin(2 * np.pi * 0.05 * t) + 0.1 * rng.normal(size=t.size)
     >>> y = np.sin(2 * np.pi * 0.12 * t) + 0.1 * rng.normal(size=t.size)
     >>> cmp = spectrum_distance(x, y, nperseg=256)
-    >>> bool(cmp.distance > 1.0), cmp.where.columns.tolist()
-    (True, ['low', 'high', 'x_value', 'y_value', 'excess'])
+    >>> round(cmp.distance, 2)
+    0.71
+    >>> cmp.where[["low", "high", "excess"]].head(2).round(3)   # x's peak, then y's
+         low   high  excess
+    0  0.033  0.064   1.417
+    1  0.096  0.127  -1.378
     """
     sx = check_series(x, name="x", min_length=16)
     sy = check_series(y, name="y", min_length=16)
@@ -422,8 +429,9 @@ def spectrum_distance(x, y, *, sample_dt=1.0, nperseg=1024, normalise=True, n_ba
     bands = _bands(f.size, n_bands)
     low = [f[b[0]] - df / 2 for b in bands]
     high = [f[b[-1]] + df / 2 for b in bands]
-    return Comparison(float(dist), _where(low, high, [lx[b].mean() for b in bands],
-                                          [ly[b].mean() for b in bands]))
+    band_x = [np.log10(max(px[b].sum() * df, 1e-300)) for b in bands]
+    band_y = [np.log10(max(py[b].sum() * df, 1e-300)) for b in bands]
+    return Comparison(float(dist), _where(low, high, band_x, band_y))
 
 
 def autocorrelation_distance(x, y, *, max_lag=100, sample_dt=1.0, n_bands=10):

@@ -52,3 +52,18 @@ def observe(x, *, noise=0.0, bits=None, random_state=None):
         levels = 2**bits - 1
         y = np.round((y - lo) / (hi - lo) * levels) / levels * (hi - lo) + lo
     return y
+
+
+def measured_mackey_glass(n_samples, delay, *, noise=0.005, bits=12, seed=0):
+    """Measured Mackey-Glass series (a=0.2, b=0.1, n=10, sample step 1).
+
+    Uses ``skdelay.systems`` (RK4, delay an exact multiple of the step) when it
+    is importable, else the Heun integrator above.
+    """
+    try:
+        from skdelay.systems import MackeyGlass, measure
+    except ImportError:  # pragma: no cover - the systems helper is not there yet
+        x = mackey_glass(n_samples, delay)
+        return observe(x, noise=noise, bits=bits, random_state=seed)
+    x = MackeyGlass(tau=float(delay)).simulate(n_samples, random_state=seed)
+    return measure(x, noise=noise, bits=bits, random_state=seed)

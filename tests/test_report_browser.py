@@ -70,27 +70,44 @@ window.addEventListener('load', function () {
 """
 
 
-def _with_selenium(path):
-    from selenium import webdriver
-    from selenium.webdriver.chrome.service import Service
+_DRIVER = {}
 
-    opts = webdriver.ChromeOptions()
-    opts.binary_location = CHROMIUM
-    for flag in FLAGS:
-        opts.add_argument(flag)
-    with tempfile.TemporaryDirectory() as profile:
+
+def _driver():
+    """One headless Chromium (selenium) per test module, fresh profile."""
+    if "driver" not in _DRIVER:
+        from selenium import webdriver
+        from selenium.webdriver.chrome.service import Service
+
+        opts = webdriver.ChromeOptions()
+        opts.binary_location = CHROMIUM
+        for flag in FLAGS:
+            opts.add_argument(flag)
+        profile = tempfile.mkdtemp(prefix="skdelay-chromium-")
         opts.add_argument(f"--user-data-dir={profile}")
-        driver = webdriver.Chrome(service=Service(CHROMEDRIVER), options=opts)
-        try:
-            driver.set_page_load_timeout(60)
-            driver.get(Path(path).resolve().as_uri())
-            images = driver.execute_script(
-                "return Array.prototype.map.call(document.images, function (i) {"
-                "return {w: i.naturalWidth, h: i.naturalHeight, complete: i.complete};});"
-            )
-            text = driver.execute_script("return document.body.innerText;")
-        finally:
-            driver.quit()
+        _DRIVER["profile"] = profile
+        _DRIVER["driver"] = webdriver.Chrome(service=Service(CHROMEDRIVER), options=opts)
+        _DRIVER["driver"].set_page_load_timeout(60)
+    return _DRIVER["driver"]
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _close_browser():
+    yield
+    driver = _DRIVER.pop("driver", None)
+    if driver is not None:
+        driver.quit()
+    shutil.rmtree(_DRIVER.pop("profile", ""), ignore_errors=True)
+
+
+def _with_selenium(path):
+    driver = _driver()
+    driver.get(Path(path).resolve().as_uri())
+    images = driver.execute_script(
+        "return Array.prototype.map.call(document.images, function (i) {"
+        "return {w: i.naturalWidth, h: i.naturalHeight, complete: i.complete};});"
+    )
+    text = driver.execute_script("return document.body.innerText;")
     return {"images": images, "text": text}
 
 

@@ -5,6 +5,7 @@
 ['clipping', 'delay_mismatch', 'dynamical_noise']
 """
 
+from ._diagnose import diagnose_gap
 from ._effects import EFFECTS, Effect, get_effect, register_effect, unregister_effect
 from ._observation import (
     Clipping,
@@ -15,9 +16,8 @@ from ._observation import (
     Quantization,
     TimebaseMismatch,
 )
-from ._simulation import DelayMismatch, DynamicalNoise, ParameterDrift
-from ._diagnose import diagnose_gap
 from ._report import GapReport
+from ._simulation import DelayMismatch, DynamicalNoise, ParameterDrift
 
 __all__ = [
     "EFFECTS",

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 import re
+from typing import ClassVar
 
 import numpy as np
 
@@ -85,9 +86,9 @@ class Effect:
     name = None
     target = "observation"
     stage = 50
-    bounds = {}
+    bounds: ClassVar[dict] = {}
     log_params = ()
-    units = {}
+    units: ClassVar[dict] = {}
     description = ""
 
     # ----------------------------------------------------------------- API
@@ -260,7 +261,7 @@ def resolve_effects(effects):
     """Instances for ``effects`` (None -> every registered effect), no duplicates."""
     if effects is None:
         items = list(EFFECTS)
-    elif isinstance(effects, (str, Effect)) or isinstance(effects, type):
+    elif isinstance(effects, (str, Effect, type)):
         items = [effects]
     else:
         items = list(effects)

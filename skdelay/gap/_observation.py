@@ -8,6 +8,8 @@ Frequencies are in cycles per time unit of the *real* record's clock.
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 from scipy import signal
 from scipy.interpolate import CubicSpline
@@ -53,9 +55,9 @@ class MeasurementNoise(Effect):
 
     name = "measurement_noise"
     stage = 40
-    bounds = {"noise": (1e-4, 3.0)}
+    bounds: ClassVar[dict] = {"noise": (1e-4, 3.0)}
     log_params = ("noise",)
-    units = {"noise": "x signal std"}
+    units: ClassVar[dict] = {"noise": "x signal std"}
     description = "white measurement noise (detector/amplifier)"
 
     def guess(self, real, sim, sample_dt):
@@ -91,9 +93,9 @@ class Quantization(Effect):
 
     name = "quantization"
     stage = 60
-    bounds = {"step": (1e-4, 1.5)}
+    bounds: ClassVar[dict] = {"step": (1e-4, 1.5)}
     log_params = ("step",)
-    units = {"step": "x signal std", "phase": "steps"}
+    units: ClassVar[dict] = {"step": "x signal std", "phase": "steps"}
     description = "ADC quantisation"
 
     def guess(self, real, sim, sample_dt):
@@ -144,9 +146,9 @@ class PeriodicInterference(Effect):
 
     name = "periodic_interference"
     stage = 30
-    bounds = {"amplitude": (1e-3, 3.0)}
+    bounds: ClassVar[dict] = {"amplitude": (1e-3, 3.0)}
     log_params = ("amplitude",)
-    units = {"frequency": "cycles per time unit", "amplitude": "x signal std", "phase": "rad"}
+    units: ClassVar[dict] = {"frequency": "cycles per time unit", "amplitude": "x signal std", "phase": "rad"}
     description = "periodic interference (e.g. mains hum)"
 
     def guess(self, real, sim, sample_dt):
@@ -192,9 +194,9 @@ class Lowpass(Effect):
 
     name = "lowpass"
     stage = 20
-    bounds = {"cutoff": (1e-6, 1e6)}
+    bounds: ClassVar[dict] = {"cutoff": (1e-6, 1e6)}
     log_params = ("cutoff",)
-    units = {"cutoff": "cycles per time unit"}
+    units: ClassVar[dict] = {"cutoff": "cycles per time unit"}
     description = "finite detector bandwidth (low-pass)"
 
     def guess(self, real, sim, sample_dt):
@@ -234,8 +236,8 @@ class Clipping(Effect):
 
     name = "clipping"
     stage = 50
-    bounds = {"low": (-8.0, 1.0), "high": (-1.0, 8.0)}
-    units = {"low": "signal std", "high": "signal std"}
+    bounds: ClassVar[dict] = {"low": (-8.0, 1.0), "high": (-1.0, 8.0)}
+    units: ClassVar[dict] = {"low": "signal std", "high": "signal std"}
     description = "saturation (clipping)"
 
     def guess(self, real, sim, sample_dt):
@@ -292,9 +294,9 @@ class Outliers(Effect):
 
     name = "outliers"
     stage = 45
-    bounds = {"rate": (1e-5, 0.1), "size": (1.0, 50.0)}
+    bounds: ClassVar[dict] = {"rate": (1e-5, 0.1), "size": (1.0, 50.0)}
     log_params = ("rate", "size")
-    units = {"rate": "per sample", "size": "x signal std"}
+    units: ClassVar[dict] = {"rate": "per sample", "size": "x signal std"}
     description = "outliers (isolated spikes)"
 
     def guess(self, real, sim, sample_dt):
@@ -342,8 +344,8 @@ class TimebaseMismatch(Effect):
 
     name = "timebase_mismatch"
     stage = 0
-    bounds = {"factor": (0.7, 1.4)}
-    units = {"factor": "x nominal sampling step"}
+    bounds: ClassVar[dict] = {"factor": (0.7, 1.4)}
+    units: ClassVar[dict] = {"factor": "x nominal sampling step"}
     description = "time-base (sampling-rate) mismatch"
 
     def guess(self, real, sim, sample_dt):

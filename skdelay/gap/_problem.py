@@ -16,6 +16,7 @@ from joblib import Parallel, delayed
 
 from .._checks import check_random_state
 from ._indicators import ensemble_stats, make_indicators, pair_gap, profiles, zscores
+from ._signature import zscore
 
 
 class SimulationFailed(RuntimeError):
@@ -26,7 +27,7 @@ def run_simulator(simulator, n, sample_dt, seed, overrides):
     """``simulator.simulate`` with every failure turned into :class:`SimulationFailed`."""
     try:
         x = simulator.simulate(n, sample_dt=sample_dt, random_state=int(seed), **overrides)
-    except Exception as exc:  # any simulator error makes this candidate fail, not the run
+    except Exception as exc:  # noqa: BLE001 - any simulator error fails this candidate only
         raise SimulationFailed(f"simulate({_kw(overrides)}) failed: {type(exc).__name__}: {exc}")
     x = np.asarray(x, dtype=float).reshape(-1)
     return _check_run(x, n, f"simulate({_kw(overrides)})")
@@ -95,7 +96,10 @@ class GapProblem:
         )
         self.base = runs
         self.indicators = make_indicators(real, runs, self.sample_dt, self.delay_samples)
-        self.real_features = {k: ind.compute(real) for k, ind in self.indicators.items()}
+        self.real_z = zscore(real)
+        self.real_features = {k: ind.profile(self.real_z, database=zscore(runs[0]))[0]
+                              if ind.paired else ind.profile(self.real_z)[0]
+                              for k, ind in self.indicators.items()}
         self.base_features = profiles(self.indicators, runs, blocks=True)
         self.base_var = {k: ensemble_stats(f, self.indicators[k], b)[1]
                          for k, (f, b) in self.base_features.items()}
@@ -134,12 +138,22 @@ class GapProblem:
             out.append(x)
         return out
 
+    def run_features(self, overrides, n, seed, names=None):
+        """Fast-indicator features of one simulator run (``overrides``, length ``n``)."""
+        names = names or [k for k, ind in self.indicators.items() if ind.tier == "fast"]
+        run = run_simulator(self.simulator, n, self.sample_dt, seed, overrides)
+        feats = profiles({k: self.indicators[k] for k in names}, [run])
+        return {k: f[0] for k, (f, _) in feats.items()}
+
     def evaluate(self, chain, tier="full", keep_runs=False):
         """:class:`Evaluation` of real vs simulator + chain; ``tier='fast'`` skips costly indicators."""
         runs = self.ensemble(chain, tier)
         names = [k for k, ind in self.indicators.items() if tier == "full" or ind.tier == "fast"]
         feats = profiles({k: self.indicators[k] for k in names}, runs)
-        return self._compare({k: f for k, (f, _) in feats.items()}, runs if keep_runs else None)
+        ev = self._compare({k: f for k, (f, _) in feats.items()}, runs)
+        if not keep_runs:
+            ev.runs = None
+        return ev
 
     def _compare(self, feats, runs=None):
         """Real vs an ensemble, every bin in units of the clean sim-vs-sim spread.
@@ -153,6 +167,8 @@ class GapProblem:
         for k, f in feats.items():
             var = self.base_var[k]
             real = self.real_features[k]
+            if self.indicators[k].paired and runs is not None and runs is not self.base:
+                real = self.indicators[k].profile(self.real_z, database=zscore(runs[0]))[0]
             gaps[k] = pair_gap(real, f, var)
             means[k] = f.mean(axis=0)
             zs[k] = zscores(real, means[k], var, f.shape[0])

@@ -32,7 +32,8 @@ class GapReport:
     where : pandas.DataFrame
         Localised discrepancies, largest first: ``indicator``, ``feature``,
         ``low``, ``high`` (frequency in cycles per time unit, values in units
-        of the real data, lags/times in time units), ``unit``, ``excess``
+        of the real data, lags/times in time units), ``peak`` (centre of the
+        most discrepant bin), ``unit``, ``excess``
         (share of the gap), ``z`` (peak z-score vs the sim ensemble),
         ``real_value``, ``sim_value``, ``sim_std``, ``note``.
     residual_where : pandas.DataFrame or None
@@ -43,8 +44,8 @@ class GapReport:
     gap_after, shrink : float
         Gap left by the best effect (or combination) and the fraction removed.
     significance : dict
-        ``gap_before``, ``null_mean``, ``null_std`` (leave-one-out gaps of the
-        simulator runs among themselves), ``threshold``, ``significant``.
+        ``gap_before``, ``null_median``, ``null_max`` (leave-one-out gaps of
+        the simulator runs among themselves), ``threshold``, ``significant``.
     combined : dict or None
         Second effect fitted on top of the best: ``effects``, ``params``,
         ``gap_after``, ``shrink``, ``table``.
@@ -110,7 +111,7 @@ class GapReport:
         head = (f"Real data ({i['n_samples']} samples, sample_dt = {_fmt(i['sample_dt'])}) versus "
                 f"{i['simulator']} ({', '.join(f'{k}={_fmt(v)}' for k, v in i['simulator_params'].items())}; "
                 f"{i['n_sims']} runs): gap {self.gap_before:.3g} against a no-gap level of "
-                f"{s['null_mean']:.2g} +- {s['null_std']:.2g} (threshold {s['threshold']:.3g}).")
+                f"{s['null_median']:.2g} (runs among themselves; threshold {s['threshold']:.3g}).")
         if not s["significant"]:
             return (head + " Real and simulated data are indistinguishable within the sim-vs-sim "
                     "spread; no effect is needed to explain them.")
@@ -196,8 +197,9 @@ class GapReport:
 
     def to_html(self, path):
         """Write a self-contained HTML report (atomic) and return its path."""
-        from .._html import write_html
         import matplotlib.pyplot as plt
+
+        from .._html import write_html
 
         effects = self.effects.copy()
         effects["params"] = effects["params"].map(

@@ -9,10 +9,12 @@ mismatch such as a retuned bias voltage).
 from __future__ import annotations
 
 import numbers
+from typing import ClassVar
 
 import numpy as np
 
 from ._effects import Effect, _fmt, register_effect
+from ._problem import SimulationFailed, run_simulator
 from ._signature import ensemble_psd, welch_psd
 
 
@@ -44,9 +46,9 @@ class DynamicalNoise(Effect):
 
     name = "dynamical_noise"
     target = "simulation"
-    bounds = {"dynamical_noise": (1e-7, 1e3)}
+    bounds: ClassVar[dict] = {"dynamical_noise": (1e-7, 1e3)}
     log_params = ("dynamical_noise",)
-    units = {"dynamical_noise": "simulator noise intensity"}
+    units: ClassVar[dict] = {"dynamical_noise": "simulator noise intensity"}
     description = "dynamical noise (inside the feedback loop)"
 
     def guess(self, real, sim, sample_dt):
@@ -59,6 +61,26 @@ class DynamicalNoise(Effect):
         sd = float(np.mean([s[:n].std() for s in sims]))
         est = np.median(sd * 2 * np.pi * f[top] * np.sqrt(excess / 2.0))
         return {"dynamical_noise": float(max(est, 1e-3 * sd))}
+
+    def initial(self, problem):
+        """Signature guess, calibrated by one trial run (the noise's units are the simulator's)."""
+        n = problem.search_length
+        g = self.guess(problem.real, np.array(problem.base), problem.sample_dt)["dynamical_noise"]
+        f, pr = welch_psd(problem.real, problem.sample_dt)
+        _, ps = ensemble_psd(np.array(problem.base), problem.sample_dt, problem.n_samples)
+        seed = problem.sim_seeds[0]
+        try:
+            trial = run_simulator(problem.simulator, n, problem.sample_dt, seed,
+                                  {"dynamical_noise": g})
+        except SimulationFailed:
+            return {"dynamical_noise": g}
+        _, pt = welch_psd(trial, problem.sample_dt)
+        top = f >= 0.25 * f[-1]
+        want = np.median(np.maximum(pr[top] - ps[top], 0.0))
+        got = np.median(np.maximum(pt[top] - ps[top], 0.0))
+        if want > 0 and got > 0:
+            g = float(np.clip(g * np.sqrt(want / got), g / 100, g * 100))
+        return {"dynamical_noise": g}
 
     def search_bounds(self, guess, context):
         g = guess["dynamical_noise"]
@@ -85,8 +107,8 @@ class DelayMismatch(Effect):
 
     name = "delay_mismatch"
     target = "simulation"
-    bounds = {"tau": (1e-9, 1e12)}
-    units = {"tau": "time units"}
+    bounds: ClassVar[dict] = {"tau": (1e-9, 1e12)}
+    units: ClassVar[dict] = {"tau": "time units"}
     description = "delay mismatch"
 
     def check(self, params, simulator=None):
@@ -94,9 +116,16 @@ class DelayMismatch(Effect):
             _param(simulator, "tau")
 
     def initial(self, problem):
-        """Guess from the dips of the forecast-error curves computed by the problem."""
+        """Move the model's delay by the shift between the forecast-error dips of the real
+        data and of a simulated run (wide scan around the model's delay)."""
+        from ._indicators import dip_position
+
         tau0 = _param(problem.simulator, "tau")
-        shift = (problem.dip_real - problem.dip_sim) * problem.sample_dt
+        d0 = tau0 / problem.sample_dt
+        n = min(problem.n_samples, 10_000)
+        dip_real = dip_position(problem.real[:n], delay_samples=d0)
+        dip_sim = dip_position(problem.base[0][:n], delay_samples=d0)
+        shift = (dip_real - dip_sim) * problem.sample_dt
         return {"tau": float(max(tau0 + shift, 2 * problem.sample_dt))}
 
     def guess(self, real, sim, sample_dt):
@@ -137,12 +166,16 @@ class ParameterDrift(Effect):
 
     name = "parameter_drift"
     target = "simulation"
-    bounds = {"start": (-np.inf, np.inf), "end": (-np.inf, np.inf)}
-    units = {"start": "parameter units", "end": "parameter units"}
+    bounds: ClassVar[dict] = {"start": (-np.inf, np.inf), "end": (-np.inf, np.inf)}
+    units: ClassVar[dict] = {"start": "parameter units", "end": "parameter units"}
     description = "parameter drift / mismatch"
     #: relative end values tried for every parameter in the coarse scan
     scan = (-0.12, -0.05, 0.05, 0.12)
     exclude = ("tau",)
+    #: with more candidate parameters than this, only the most plausible ones are scanned
+    max_scanned = 3
+    #: relative step of the sensitivity runs that rank the parameters
+    probe = 0.1
 
     def candidates(self, simulator):
         params = getattr(simulator, "params", None) or {}
@@ -172,7 +205,7 @@ class ParameterDrift(Effect):
         """Coarse scan of ``end`` (``start`` nominal) per parameter, parabolic refinement of
         the best one, then the same change as a constant offset."""
         best = (np.inf, None, None)
-        for key in self.candidates(problem.simulator):
+        for key in self.ranked(problem)[: self.max_scanned]:
             v0 = _param(problem.simulator, key)
             for rel in self.scan:
                 gap = objective({"parameter": key, "start": v0, "end": v0 * (1 + rel)})
@@ -202,6 +235,40 @@ class ParameterDrift(Effect):
         if objective(const) < pts[r_best]:
             params = const
         return params
+
+    def ranked(self, problem):
+        """Candidate parameters, most plausible first.
+
+        One short run per parameter, changed by ``probe``: the parameter whose
+        change moves the fast indicators most nearly along the real data's
+        deviation from the simulator (cosine of z-vectors) ranks first.
+        """
+        keys = self.candidates(problem.simulator)
+        if len(keys) <= self.max_scanned:
+            return keys
+        names = [k for k, ind in problem.indicators.items()
+                 if ind.tier == "fast" and k != "segment"]
+        dev = np.concatenate([problem.before.z[k] for k in names])
+        n = min(problem.search_length, 6000)
+        seed = problem.sim_seeds[0]
+        try:
+            ref = problem.run_features({}, n, seed, names)
+        except SimulationFailed:
+            return keys
+        scores = []
+        for key in keys:
+            v0 = _param(problem.simulator, key)
+            try:
+                feats = problem.run_features({key: v0 * (1 + self.probe)}, n, seed, names)
+            except SimulationFailed:
+                scores.append(0.0)
+                continue
+            shift = np.concatenate([(feats[k] - ref[k]) / np.sqrt(problem.base_var[k])
+                                    for k in names])
+            norm = np.linalg.norm(shift) * np.linalg.norm(dev)
+            scores.append(float(abs(shift @ dev) / norm) if norm > 0 else 0.0)
+        order = np.argsort(scores)[::-1]
+        return [keys[i] for i in order]
 
     def overrides(self, params, simulator):
         start, end = float(params["start"]), float(params["end"])

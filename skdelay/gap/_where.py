@@ -8,7 +8,7 @@ import pandas as pd
 #: a bin is discrepant when |z| exceeds this (z is against the sim-vs-sim spread)
 Z_WHERE = 4.0
 
-COLUMNS = ["indicator", "feature", "low", "high", "unit", "excess", "z", "real_value",
+COLUMNS = ["indicator", "feature", "low", "high", "peak", "unit", "excess", "z", "real_value",
            "sim_value", "sim_std", "note"]
 
 
@@ -32,7 +32,8 @@ def _runs(mask, labels):
 def localise(problem, evaluation=None):
     """DataFrame of localised discrepancies between real and simulated data, largest first.
 
-    ``excess`` is the run's contribution to the gap (sum of ``z**2 - 1`` over
+    ``peak`` is the centre of the run's most discrepant bin.  ``excess`` is
+    the run's contribution to the gap (sum of ``z**2 - 1`` over
     its bins divided by the indicator's number of bins), so the rows of an
     indicator add up to about its share of ``gap_before``.
     """
@@ -48,7 +49,7 @@ def localise(problem, evaluation=None):
             k = a + int(np.argmax(np.abs(seg)))
             rows.append({
                 "indicator": name, "feature": labels[k], "low": float(lo[a]),
-                "high": float(hi[b - 1]), "unit": ind.unit,
+                "high": float(hi[b - 1]), "peak": _centre(lo[k], hi[k]), "unit": ind.unit,
                 "excess": float(np.sum(np.square(seg) - 1.0) / z.size), "z": float(z[k]),
                 "real_value": float(real[k]), "sim_value": float(ev.mean[name][k]),
                 "sim_std": float(ev.std[name][k]), "note": _note(name, z[k], labels[k]),
@@ -56,6 +57,14 @@ def localise(problem, evaluation=None):
     rows.extend(_dip_rows(problem, ev))
     df = pd.DataFrame(rows, columns=COLUMNS)
     return df.sort_values("excess", ascending=False, kind="stable").reset_index(drop=True)
+
+
+def _centre(lo, hi):
+    if not np.isfinite(lo):
+        return float(hi)
+    if not np.isfinite(hi):
+        return float(lo)
+    return float(0.5 * (lo + hi))
 
 
 def _note(name, z, label):
@@ -76,7 +85,7 @@ def _dip_rows(problem, ev):
     dt = problem.sample_dt
     return [{
         "indicator": "forecast_error", "feature": "dip position",
-        "low": min(d_real, d_sim) * dt, "high": max(d_real, d_sim) * dt,
+        "low": min(d_real, d_sim) * dt, "high": max(d_real, d_sim) * dt, "peak": d_real * dt,
         "unit": fe.unit, "excess": float(ev.gaps["forecast_error"]),
         "z": float((d_real - d_sim) / max(spread, 0.25)), "real_value": d_real * dt,
         "sim_value": d_sim * dt, "sim_std": spread * dt,

@@ -14,6 +14,7 @@ import math
 import numbers
 
 import numpy as np
+
 from .._checks import check_positive_int, check_random_state
 from .._spectrum import LyapunovSpectrum
 from ._integrate import integrate_chunk, register, stencils
@@ -174,15 +175,19 @@ class DelaySystem:
                 f"tau/dt = {tau / dt:.3g} history points is too many; use a larger dt."
             )
 
-    def _initial_state(self, rng, n_hist, params):
-        """Random initial state (d,) and history of x_l (n_hist,) -- override per system."""
+    def _initial_state(self, rng, times, params):
+        """Initial state (d,) at t = 0 and history of x_l at ``times`` (< 0).
+
+        Default: a random state and a constant history with 1 % jitter;
+        systems override it with a sensible range.
+        """
         x0 = 0.5 + rng.uniform(size=self.dim)
-        hist = x0[self.feedback_index] + 0.01 * rng.standard_normal(n_hist)
+        hist = x0[self.feedback_index] * (1.0 + 0.01 * rng.standard_normal(times.size))
         return x0, hist
 
     def _start(self, rng, tau_max, dt, params):
-        m_ring = int(math.ceil(tau_max / dt - 1e-9)) + 3
-        x0, hist = self._initial_state(rng, m_ring, params)
+        m_ring = math.ceil(tau_max / dt - 1e-9) + 3
+        x0, hist = self._initial_state(rng, (np.arange(m_ring) - m_ring) * dt, params)
         x = np.array(x0, dtype=np.float64)
         ring = np.ascontiguousarray(hist, dtype=np.float64)
         counter = np.array([m_ring], dtype=np.int64)  # ring[m % M] = x_l(t_m), m < M
@@ -249,19 +254,21 @@ class DelaySystem:
             raise ValueError(f"dynamical_noise must be a non-negative number, got {noise}.")
         rng = check_random_state(random_state)
         transient = self._transient(transient, max(tau0, tau1))
-        n_trans = int(math.ceil(transient / (every * dt) - 1e-9))
+        n_trans = math.ceil(transient / (every * dt) - 1e-9)
 
         x, ring, counter = self._start(rng, max(tau0, tau1), dt, start)
         p0 = self._vector(start)
         dp = self._vector(end) - p0
         p = p0.copy()
         tag = self._tag(self.dim)
-        scale = noise * math.sqrt(dt) * np.asarray(self.noise_scale, dtype=np.float64)
+        noise_scale = np.asarray(self.noise_scale, dtype=np.float64)
+        noise_idx = np.flatnonzero(noise_scale).astype(np.int64)
+        scale = noise * math.sqrt(dt) * noise_scale[noise_idx]
         rec_start = int(counter[0]) + n_trans * every
         rec_len = max(1, (n_samples - 1) * every)
         out = np.empty(n_samples, dtype=np.float64)
         chunk = max(1, _CHUNK_STEPS // every) if noise > 0 else n_samples + n_trans
-        no_noise = np.empty((0, self.dim))
+        no_noise = np.empty((0, noise_idx.size))
         total = n_trans + n_samples
         done = 0
         while done < total:
@@ -271,11 +278,11 @@ class DelaySystem:
                 target = np.empty(m)
             else:
                 target = out[done - n_trans: done - n_trans + m]
-            eps = (rng.standard_normal((m * every, self.dim)) * scale if noise > 0
+            eps = (rng.standard_normal((m * every, noise_idx.size)) * scale if noise > 0
                    else no_noise)
             ok = integrate_chunk(tag, x, ring, counter, self.feedback_index, p, p0, dp,
                                  tau0, tau1 - tau0, drift, rec_start, rec_len, dt, every,
-                                 eps, target)
+                                 eps, noise_idx, target)
             if ok < m:
                 where = "the transient" if done < n_trans else "the recorded run"
                 raise self._diverged(start, where, end if drift else None)
@@ -344,14 +351,14 @@ class DelaySystem:
             duration = float(self.spectrum_duration if duration is None else duration)
             if not (math.isfinite(duration) and duration > 0):
                 raise ValueError(f"duration must be a positive time, got {duration}.")
-            n_steps = int(math.ceil(duration / dt))
+            n_steps = math.ceil(duration / dt)
         n_steps = check_positive_int(n_steps, name="n_steps")
         qr_time = float(self.qr_interval if qr_interval is None else qr_interval)
         if not (math.isfinite(qr_time) and qr_time > 0):
             raise ValueError(f"qr_interval must be a positive time, got {qr_time}.")
-        qr_every = max(1, int(round(qr_time / dt)))
-        n_qr = max(n_blocks, int(math.ceil(n_steps / qr_every)))
-        per_block = int(math.ceil(n_qr / n_blocks))
+        qr_every = max(1, round(qr_time / dt))
+        n_qr = max(n_blocks, math.ceil(n_steps / qr_every))
+        per_block = math.ceil(n_qr / n_blocks)
         rng = check_random_state(random_state)
 
         tau_steps = tau / dt
@@ -373,10 +380,11 @@ class DelaySystem:
         l = self.feedback_index
         # trajectory transient with the simulation kernel, then hand over the history
         trans = self._transient(transient, tau)
-        n_trans = int(math.ceil(trans / dt))
+        n_trans = math.ceil(trans / dt)
         if n_trans:
             ok = integrate_chunk(tag, x, ring_big, counter, l, p, p, np.zeros_like(p), tau, 0.0,
-                                 False, 0, 1, dt, n_trans, np.empty((0, self.dim)), np.empty(1))
+                                 False, 0, 1, dt, n_trans, np.empty((0, 0)),
+                                 np.empty(0, dtype=np.int64), np.empty(1))
             if ok < 1:
                 raise self._diverged(params, "the transient")
         n = int(counter[0])
@@ -389,7 +397,7 @@ class DelaySystem:
         logsum = np.zeros(k)
         t_warm = (max(5.0 * tau, n_qr * qr_every * dt / 20.0) if tangent_transient is None
                   else float(tangent_transient))
-        n_warm = int(math.ceil(t_warm / (qr_every * dt)))
+        n_warm = math.ceil(t_warm / (qr_every * dt))
         if not tangent_run(tag, x, ring, counter, l, p, dt, starts, weights, V, W, n_warm,
                            qr_every, logsum, False):
             raise self._diverged(params, "the tangent transient")

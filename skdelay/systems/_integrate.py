@@ -204,16 +204,17 @@ def rk4_update(x, dt, k):
 
 @njit(cache=True)
 def integrate_chunk(tag, x, ring, counter, l, p, p0, dp, tau0, dtau, drift, rec_start, rec_len,
-                    dt, every, noise, out):
+                    dt, every, noise, noise_idx, out):
     """Advance ``len(out) * every`` steps, recording ``x_l`` before every ``every`` steps.
 
     State: ``x`` (d,), ``ring`` (M,) with ``ring[m % M] = x_l(t_m)`` for past
     steps ``m``, ``counter[0]`` = current step ``n``.  With ``drift`` the
     parameters ``p`` and the delay move linearly from ``p0``/``tau0`` to
     ``p0 + dp``/``tau0 + dtau`` over steps ``rec_start .. rec_start + rec_len``.
-    ``noise`` is empty or holds the pre-scaled increments (steps, d) added after
-    each step (Euler-Maruyama).  Returns the number of samples written before the
-    state became non-finite (``len(out)`` when all is well).
+    ``noise`` is empty or holds the pre-scaled increments (steps,
+    len(noise_idx)) added to the components ``noise_idx`` after each step
+    (Euler-Maruyama).  Returns the number of samples written before the state
+    became non-finite (``len(out)`` when all is well).
     """
     d = x.shape[0]
     m_ring = ring.shape[0]
@@ -246,8 +247,8 @@ def integrate_chunk(tag, x, ring, counter, l, p, p0, dp, tau0, dtau, drift, rec_
             rk4_stages(tag, x, xd0, xdh, xd1, p, dt, k, xs)
             rk4_update(x, dt, k)
             if use_noise:
-                for q in range(d):
-                    x[q] += noise[step, q]
+                for q in range(noise_idx.shape[0]):
+                    x[noise_idx[q]] += noise[step, q]
             step += 1
             n += 1
             slot += 1

@@ -10,9 +10,11 @@ stale cache index that names an old tag never fails.
 
 from __future__ import annotations
 
+import re
 from collections import namedtuple
 
 _CLASSES = {}
+_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*_[0-9a-f]{12}$")
 
 
 def tag_class(name):
@@ -25,6 +27,6 @@ def tag_class(name):
 
 
 def __getattr__(name):
-    if name.startswith("__"):
-        raise AttributeError(name)
+    if not _NAME.match(name):
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
     return tag_class(name)

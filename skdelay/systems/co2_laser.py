@@ -82,7 +82,7 @@ class CO2LaserFeedback(DelaySystem):
     k0, k1, g1, g2, g, p0, z, beta, alpha, r, b0 : float
         Model parameters (rates in 1/microsecond); the defaults are the
         published values (see Notes).
-    sp : float, default=1e-5
+    sp : float, default=2e-5
         Spontaneous-emission source of the intensity (1/microsecond).
 
     Notes
@@ -98,7 +98,7 @@ class CO2LaserFeedback(DelaySystem):
     feedback equation.  The published model has no spontaneous emission; on
     the long off-phases of the delayed loop the intensity then decays to
     ~1e-40 and the pulse timing depends on the floor of floating point.  The
-    small source ``sp = 1e-5`` (intensity floor ~1e-6 of the lasing level
+    small source ``sp = 2e-5`` (intensity floor ~1e-6 of the lasing level
     scale) keeps the off-phases physical; with it the laser oscillates at
     the relaxation (Hopf) frequency of the feedback loop, dominant period
     about 25 microseconds (40 kHz, as in the experiment), with a deep chaotic
@@ -132,7 +132,7 @@ class CO2LaserFeedback(DelaySystem):
     _jac = staticmethod(_co2_jac)
 
     def __init__(self, tau=150.0, k0=28.5714, k1=4.5556, g1=10.0643, g2=1.0643, g=0.05,
-                 p0=0.016, z=10.0, beta=0.4286, alpha=32.8767, r=160.0, b0=0.1031, sp=1e-5):
+                 p0=0.016, z=10.0, beta=0.4286, alpha=32.8767, r=160.0, b0=0.1031, sp=2e-5):
         super().__init__(tau=tau, k0=k0, k1=k1, g1=g1, g2=g2, g=g, p0=p0, z=z, beta=beta,
                          alpha=alpha, r=r, b0=b0, sp=sp)
 
@@ -144,10 +144,10 @@ class CO2LaserFeedback(DelaySystem):
                 f"got {', '.join(f'{k}={params[k]}' for k in bad + ['sp'])}."
             )
 
-    def _initial_state(self, rng, n_hist, params):
+    def _initial_state(self, rng, times, params):
         # near the lasing steady state of the published parameters
         x1 = 5e-4 * (1.0 + 0.1 * rng.uniform())
         x0 = np.array([x1, 1.0, 1.03, 10.0, 10.3, 0.015])
         x0[1:5] *= 1.0 + 0.01 * rng.standard_normal(4)
-        hist = x1 * (1.0 + 0.01 * rng.standard_normal(n_hist))
+        hist = x1 * (1.0 + 0.01 * rng.standard_normal(times.size))
         return x0, hist

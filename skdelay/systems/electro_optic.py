@@ -82,7 +82,7 @@ class ElectroOpticOscillator(DelaySystem):
         if params["eps"] < 0:
             raise ValueError(f"eps = tau_H / theta must be >= 0, got {params['eps']}.")
 
-    def _initial_state(self, rng, n_hist, params):
+    def _initial_state(self, rng, times, params):
         x0 = [rng.uniform(-1.0, 1.0), 0.0]
-        hist = x0[0] + 0.1 * rng.standard_normal(n_hist)
+        hist = x0[0] + 0.1 * rng.standard_normal(times.size)
         return x0, hist

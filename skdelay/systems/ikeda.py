@@ -64,7 +64,7 @@ class Ikeda(DelaySystem):
     def __init__(self, tau=5.0, mu=20.0, x0=math.pi / 4):
         super().__init__(tau=tau, mu=mu, x0=x0)
 
-    def _initial_state(self, rng, n_hist, params):
+    def _initial_state(self, rng, times, params):
         level = rng.uniform(0.0, abs(params["mu"]))
-        hist = level + 0.1 * rng.standard_normal(n_hist)
+        hist = level + 0.1 * rng.standard_normal(times.size)
         return [level], hist

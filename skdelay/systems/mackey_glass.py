@@ -5,6 +5,7 @@ from __future__ import annotations
 from ._base import DelaySystem
 from ._integrate import ipow
 
+
 def _mg_rhs(x, xd, p, out):
     a, b, n = p[0], p[1], p[2]
     out[0] = a * xd / (1.0 + ipow(xd, n)) - b * x[0]
@@ -65,7 +66,7 @@ class MackeyGlass(DelaySystem):
                 f"MackeyGlass needs a > 0 and b > 0, got a={params['a']}, b={params['b']}."
             )
 
-    def _initial_state(self, rng, n_hist, params):
+    def _initial_state(self, rng, times, params):
         level = 0.5 + rng.uniform()
-        hist = level * (1.0 + 0.01 * rng.standard_normal(n_hist))
+        hist = level * (1.0 + 0.01 * rng.standard_normal(times.size))
         return [level], hist
