@@ -7,6 +7,8 @@ at build time (a few minutes on two cores), existing ones are reused.
 
 import os
 import sys
+from importlib.metadata import PackageNotFoundError
+from importlib.metadata import version as _version
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -19,10 +21,8 @@ project = "skdelay"
 author = "skdelay developers"
 copyright = "skdelay developers"
 try:
-    from importlib.metadata import version as _version
-
     release = _version("skdelay")
-except Exception:  # pragma: no cover - docs built from a plain checkout
+except PackageNotFoundError:  # pragma: no cover - docs built from a plain checkout
     release = "0.1.0"
 version = release
 

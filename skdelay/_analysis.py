@@ -23,8 +23,15 @@ import pandas as pd
 
 from ._checks import check_series
 
-__all__ = ["AnalysisResult", "analyze_series", "check_options", "default_tau_max",
-           "DemoResult", "run_demo", "PAPER_TABLE"]
+__all__ = [
+    "PAPER_TABLE",
+    "AnalysisResult",
+    "DemoResult",
+    "analyze_series",
+    "check_options",
+    "default_tau_max",
+    "run_demo",
+]
 
 DEFAULT_M = (2, 3, 4, 5)
 MAX_TAU = 500
@@ -76,7 +83,7 @@ def default_tau_max(series, *, cap=MAX_TAU):
     if below.size == 0:
         return min(100, cap)
     start = int(below[0])
-    peaks, props = find_peaks(acf[start:], prominence=0.02 * np.ptp(acf[start:]))
+    peaks, _props = find_peaks(acf[start:], prominence=0.02 * np.ptp(acf[start:]))
     if peaks.size == 0:
         return min(100, cap)
     best = int(peaks[np.argmax(acf[start:][peaks])]) + start
@@ -121,8 +128,8 @@ def check_options(series, *, m=DEFAULT_M, tau_min=1, tau_max=None, sample_dt=1.0
         n_queries = int(n_queries)
         if n_queries < 100:
             raise ValueError(f"n_queries must be >= 100, got {n_queries}.")
-    return dict(m=ms, tau_min=tau_min, tau_max=tau_max, sample_dt=sample_dt,
-                n_queries=n_queries)
+    return {"m": ms, "tau_min": tau_min, "tau_max": tau_max, "sample_dt": sample_dt,
+                "n_queries": n_queries}
 
 
 # ---------------------------------------------------------------------------------- result
@@ -228,9 +235,9 @@ class AnalysisResult:
             "delay per m (samples): " + ", ".join(
                 f"m={m}: {row.delay:.1f} +- {row.half_width:.1f}"
                 for m, row in self.delays.iterrows()),
-            f"model m={r['m']}, tau={r['delay']}: {r['N']} positive exponent(s), "
+            (f"model m={r['m']}, tau={r['delay']}: {r['N']} positive exponent(s), "
             f"lambda_max = {r['lambda_max']:.4g} /time unit, D_KY = {r['D_KY']:.2f}, "
-            f"h_KS = {r['h_KS']:.4g} /time unit, D_KY/tau = {r['D_KY/tau']:.4g} /time unit",
+            f"h_KS = {r['h_KS']:.4g} /time unit, D_KY/tau = {r['D_KY/tau']:.4g} /time unit"),
             "minimal faithful m: " + (str(self.minimal_m) if self.minimal_m is not None
                                       else f"none up to m={max(self.spectra)}"),
         ]
@@ -238,9 +245,9 @@ class AnalysisResult:
 
     def write_files(self, directory):
         """Write results.json, the CSV tables, the model runs and report.html into ``directory``."""
-        from ._report import write_analysis_report
-
         from pathlib import Path
+
+        from ._report import write_analysis_report
 
         d = Path(directory)
         d.mkdir(parents=True, exist_ok=True)
@@ -412,7 +419,7 @@ def analyze_series(series, *, m=DEFAULT_M, tau_min=1, tau_max=None, sample_dt=1.
     curve = forecast_error_curve(s, m=ms, tau=taus, n_queries=opts["n_queries"],
                                  random_state=random_state, n_jobs=n_jobs, verbose=verbose)
     dips = locate_dips(curve)
-    dips["tau_used"] = [max(1, int(round(v))) for v in dips["delay"]]
+    dips["tau_used"] = [max(1, round(v)) for v in dips["delay"]]
     timings["delay_scan"] = time.perf_counter() - t1
 
     m_all = list(range(ms[0], ms[-1] + 1))

@@ -23,7 +23,7 @@ import pandas as pd
 from ._atomic import atomic_path
 from ._checks import check_series
 
-__all__ = ["read_table", "read_series", "write_series", "check_output_directory", "atomic_directory"]
+__all__ = ["atomic_directory", "check_output_directory", "read_series", "read_table", "write_series"]
 
 _TEXT_SUFFIXES = {".csv", ".txt", ".dat", ".tsv", ".asc", ""}
 _NUMBER = re.compile(r"^[+-]?(\d+\.?\d*([eE][+-]?\d+)?|\.\d+([eE][+-]?\d+)?|nan|inf|infinity)$",

@@ -194,10 +194,10 @@ def analysis_sections(result, *, scale=1.0, unit="1/time unit", prefix=""):
         (f"{prefix}Lyapunov spectra, Kaplan-Yorke dimension, KS entropy",
          [_safe(fig_spectra, result, scale, unit)]),
         (f"{prefix}Validation of the iterated models",
-         ["<p>Free runs of each model against the data. A model is faithful when it stays "
+         [("<p>Free runs of each model against the data. A model is faithful when it stays "
           "bounded and its histogram, power spectrum, cross-prediction error and Lyapunov "
           "spectrum agree with the data within the data's own sampling spread "
-          "(see <code>skdelay.dynamics.minimal_embedding</code>).</p>",
+          "(see <code>skdelay.dynamics.minimal_embedding</code>).</p>"),
           _safe(fig_series, result, dt), _safe(fig_distributions, result, dt), val,
           _safe(fig_space_time, result)]),
     ]
@@ -258,9 +258,9 @@ def write_demo_report(demo, path):
     table = demo.table.copy()
     sections = [
         ("The paper's table on the laser-like data",
-         [f"<p>Exponents and entropies in {html.escape(demo.unit)}; <em>exact</em> columns: "
+         [(f"<p>Exponents and entropies in {html.escape(demo.unit)}; <em>exact</em> columns: "
           "the simulator's own spectrum (tangent dynamics of the delay equation) with the "
-          "same number of exponents. m_d: minimal faithful window length.</p>", table,
+          "same number of exponents. m_d: minimal faithful window length.</p>"), table,
           "<p>For comparison, Bünner et al. (CO<sub>2</sub> laser experiment, 1/ms):</p>",
           PAPER_TABLE]),
         ("Rescaled-spectrum collapse", [_safe(fig_collapse, demo)]),

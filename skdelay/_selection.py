@@ -222,7 +222,7 @@ def _candidate_lists(s, m, members, needed, n_list, theiler, workers):
     tree = cKDTree(_gather(s, members, first))
     excl = 0 if theiler is None else 2 * theiler + 1
     kq = min(members.size, n_list + excl)
-    lists = np.full((needed.size, n_list), -1, dtype=np.int64)
+    lists = np.full((needed.size, n_list), -1, dtype=np.int32)
     rk2 = np.empty(needed.size)
     for sl in _chunks(needed.size, 3 * kq):
         d, pos = tree.query(_gather(s, needed[sl], first), k=kq, workers=workers)
@@ -240,10 +240,11 @@ def _candidate_lists(s, m, members, needed, n_list, theiler, workers):
 
 
 def _errors_candidates(s, m, taus, db_t, q_t, *, k, order, ridge, radius, theiler, workers,
-                       n_candidates):
+                       n_candidates, max_start=None):
     k = min(k, db_t.size)
     starts = np.array([_second_window_start(m, int(tau)) for tau in taus])
-    members = np.arange(max(m - 1, int(db_t.min()) - int(starts.max())), int(db_t.max()) + 1)
+    reach_back = int(starts.max()) if max_start is None else int(max_start)
+    members = np.arange(max(m - 1, int(db_t.min()) - reach_back), int(db_t.max()) + 1)
     needed = np.unique(np.concatenate([q_t, (q_t[:, None] - np.unique(starts)[None, :]).ravel()]))
     u_min = int(needed[0])
     row_of = np.full(int(needed[-1]) - u_min + 1, -1, dtype=np.int64)
@@ -280,7 +281,8 @@ def _errors_job(s, m, taus, db_t, q_t, opts):
     return _errors_candidates(s, m, taus, db_t, q_t, k=opts["k"], order=opts["order"],
                               ridge=opts["ridge"], radius=opts["radius"],
                               theiler=opts["theiler"], workers=1,
-                              n_candidates=opts["n_candidates"])
+                              n_candidates=opts["n_candidates"],
+                              max_start=_second_window_start(m, int(opts["max_tau"])))
 
 
 # ----------------------------------------------------------------------------- equal neighbourhoods
@@ -330,8 +332,10 @@ def scan_series(s, ms, taus, splits, *, k, order, ridge, radius, theiler, n_quer
     k = check_positive_int(k, name="n_neighbors")
     n_candidates = (max(2 * k, 32) if n_candidates is None
                     else check_positive_int(n_candidates, name="n_candidates"))
+    # one job per (split, m): the candidate lists of an m are built once per job, so
+    # blocks of tau are only split off when there are fewer (split, m) pairs than workers
     n_workers = max(1, effective_n_jobs(n_jobs))
-    n_chunks = max(1, min(len(taus), -(-2 * n_workers // (len(splits) * len(ms)))))
+    n_chunks = max(1, min(len(taus), -(-n_workers // (len(splits) * len(ms)))))
     tau_chunks = [c for c in np.array_split(np.asarray(taus), n_chunks) if c.size]
     jobs, meta = [], {"segment_length": {}, "n_queries": {}, "radius": radius}
     for split, (db_t, test_t) in enumerate(splits):
@@ -349,17 +353,22 @@ def scan_series(s, ms, taus, splits, *, k, order, ridge, radius, theiler, n_quer
                 for m in ms[:-1]:
                     seg[int(m)] = _segment_length(s, int(m), tau_ref, db_t, k, w or 0, d_ref,
                                                   rng, n_min)
+        shared = None  # one query set for every m unless the database differs per m
         for m in ms:
             db_m = db_t[-seg[int(m)]:]
             pool = db_m if test_t is None else test_t
-            if n_queries is not None and n_queries < pool.size:
-                q_t = np.sort(rng.choice(pool, size=n_queries, replace=False))
-            else:
+            if n_queries is None or n_queries >= pool.size:
                 q_t = pool
+            elif shared is not None and db_m.size == db_t.size:
+                q_t = shared
+            else:
+                q_t = np.sort(rng.choice(pool, size=n_queries, replace=False))
+                if db_m.size == db_t.size:
+                    shared = q_t
             meta["segment_length"][int(m)] = int(db_m.size)
             meta["n_queries"][int(m)] = int(q_t.size)
             opts = {"k": k, "order": order, "ridge": ridge, "radius": rad, "theiler": w,
-                    "search": search, "n_candidates": n_candidates}
+                    "search": search, "n_candidates": n_candidates, "max_tau": int(taus[-1])}
             for chunk in tau_chunks:
                 jobs.append(((split, int(m), chunk), delayed(_errors_job)(s, int(m), chunk,
                                                                           db_m, q_t, opts)))
@@ -540,7 +549,7 @@ def forecast_error_curve(series, m=(2, 3, 4, 5), tau=range(1, 101), *, n_neighbo
     """
     s = check_series(series, name="series")
     ms, taus = as_grid(m, "m"), as_grid(tau, "tau")
-    n_lags = max(required_lags(int(mm), int(tt)) for mm in ms for tt in (taus[0], taus[-1]))
+    n_lags = required_lags(int(ms[-1]), int(taus[-1]))
     k = check_positive_int(n_neighbors, name="n_neighbors")
     if s.size < n_lags + k + 2:
         raise ValueError(

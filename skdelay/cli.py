@@ -229,11 +229,11 @@ def build_parser():
 
 
 def _version():
-    try:
-        from importlib.metadata import version
+    from importlib.metadata import PackageNotFoundError, version
 
+    try:
         return version("skdelay")
-    except Exception:  # pragma: no cover - not installed
+    except PackageNotFoundError:  # pragma: no cover - not installed
         return "unknown"
 
 
@@ -276,7 +276,6 @@ def _prepare_analyze(args):
 def _prepare_demo(args):
     from . import _analysis
     from ._io import check_output_directory
-
     from .datasets import LASER_DELAYS
 
     check_output_directory(args.out, force=args.force)
@@ -336,8 +335,8 @@ def _prepare_gap(args):
                              f"{', '.join(sorted(EFFECTS))}")
 
     def run():
-        from .gap import diagnose_gap
         from ._io import atomic_directory
+        from .gap import diagnose_gap
 
         say = _progress(args)
         say(f"diagnosing the gap between {args.real} and {system!r}")

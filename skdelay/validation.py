@@ -406,8 +406,8 @@ def spectrum_distance(x, y, *, sample_dt=1.0, nperseg=1024, normalise=True, n_ba
     0.71
     >>> cmp.where[["low", "high", "excess"]].head(2).round(3)   # x's peak, then y's
          low   high  excess
-    0  0.033  0.064   1.417
-    1  0.096  0.127  -1.378
+    0  0.033  0.064   2.903
+    1  0.096  0.127  -2.876
     """
     sx = check_series(x, name="x", min_length=16)
     sy = check_series(y, name="y", min_length=16)

@@ -97,7 +97,7 @@ def test_correlation_dimension_mackey_glass_tau23():
     x = MackeyGlass(tau=23.0).simulate(20_000, random_state=0)
     res = correlation_dimension(x, dims=range(4, 9), lag=10, theiler_window=50,
                                 n_reference=3000, random_state=0)
-    assert abs(res.dimension - 2.4) < 0.25, res.dimension  # measured 2.50
+    assert abs(res.dimension - 2.4) < 0.25, res.dimension  # measured 2.35 (2.48 at N = 1e5)
 
 
 def test_maximal_lyapunov_exponent_lorenz(lorenz_series):

@@ -12,9 +12,9 @@ import pytest
 
 pytest.importorskip("matplotlib")
 
-from _cli_data import small_delay_series  # noqa: E402
+from _cli_data import small_delay_series
 
-from skdelay.cli import main, parse_m, parse_params  # noqa: E402
+from skdelay.cli import main, parse_m, parse_params
 
 ANALYZE_FAST = ["--m", "2..3", "--tau-min", "6", "--tau-max", "18", "--quiet",
                 "--n-queries", "800"]
@@ -289,6 +289,6 @@ def test_demo_reduced(tmp_path, capsys, monkeypatch):
 def test_console_entry_point_exit_codes(tmp_path):
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1]))
     bad = subprocess.run([sys.executable, "-m", "skdelay.cli", "analyze", str(tmp_path / "n.csv")],
-                         capture_output=True, text=True, env=env, timeout=120)
+                         capture_output=True, text=True, env=env, timeout=120, check=False)
     assert bad.returncode == 2
     assert bad.stderr.strip().count("\n") == 0 and "does not exist" in bad.stderr

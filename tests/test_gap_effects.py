@@ -1,5 +1,7 @@
 """Effect library of the sim-to-real gap module: registry, application, signature guesses."""
 
+from typing import ClassVar
+
 import numpy as np
 import pytest
 
@@ -52,7 +54,7 @@ def test_registry_has_every_contract_effect():
 def test_register_custom_effect_and_errors():
     class Gain2(Effect):
         name = "gain_step_test"
-        bounds = {"size": (0.1, 2.0)}
+        bounds: ClassVar[dict] = {"size": (0.1, 2.0)}
 
         def apply(self, x, params, *, sample_dt=1.0, random_state=None):
             return x * (1 + params["size"])
@@ -117,7 +119,7 @@ def test_periodic_interference_and_line_guess():
     sims = smooth_ensemble()
     hum = get_effect("periodic_interference")
     y = hum.apply(x, {"frequency": 0.1234, "amplitude": 0.05, "phase": 1.0}, sample_dt=0.5)
-    freq, amp, phase, prominence = spectral_line(y, sims, 0.5)
+    freq, _, _, prominence = spectral_line(y, sims, 0.5)
     assert freq == pytest.approx(0.1234, abs=0.1 / (len(y) * 0.5))
     g = hum.guess(y, sims, 0.5)
     assert g["amplitude"] == pytest.approx(0.05, rel=0.1)
@@ -167,14 +169,14 @@ def test_white_floor_and_spike_guesses():
     assert g["noise"] == pytest.approx(0.05, rel=0.2)
     assert white_floor(x, sims, 1.0) < 1e-6
     spiky = get_effect("outliers").apply(x, {"rate": 0.003, "size": 8.0}, random_state=3)
-    rate, size = spikes(spiky, sims)
+    rate, _ = spikes(spiky, sims)
     assert rate == pytest.approx(0.003, rel=0.25)
     assert spikes(x, sims) == (0.0, 0.0)
 
 
 def test_simulation_effects_overrides():
     class Sim:
-        params = {"tau": 17.0, "b": 0.1, "label": "x"}
+        params: ClassVar[dict] = {"tau": 17.0, "b": 0.1, "label": "x"}
 
     assert get_effect("delay_mismatch").overrides({"tau": 18.5}, Sim()) == {"tau": 18.5}
     assert get_effect("dynamical_noise").overrides({"dynamical_noise": 0.01}, Sim()) == {
@@ -186,13 +188,13 @@ def test_simulation_effects_overrides():
     assert drift.candidates(Sim()) == ["b"]
 
     class NoTau:
-        params = {"gain": 2.0}
+        params: ClassVar[dict] = {"gain": 2.0}
 
     with pytest.raises(ValueError, match="no parameter 'tau'"):
         get_effect("delay_mismatch").check({"tau": 3.0}, NoTau())
 
     class OnlyTau:
-        params = {"tau": 5.0}
+        params: ClassVar[dict] = {"tau": 5.0}
 
     with pytest.raises(ValueError, match="no numeric parameter besides tau"):
         drift.check({}, OnlyTau())

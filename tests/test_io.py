@@ -104,9 +104,8 @@ def test_atomic_directory_creates_and_refuses(tmp_path):
     assert (out / "a.txt").read_text() == "one"
     with pytest.raises(ValueError, match="--force"):
         check_output_directory(out)
-    with pytest.raises(ValueError, match="--force"):
-        with atomic_directory(out):
-            pass  # never reached
+    with pytest.raises(ValueError, match="--force"), atomic_directory(out):
+        pass  # never reached
     assert sorted(p.name for p in tmp_path.iterdir()) == ["report"]
 
 
@@ -114,10 +113,9 @@ def test_atomic_directory_replace_and_failure_leave_no_half_state(tmp_path):
     out = tmp_path / "report"
     out.mkdir()
     (out / "old.txt").write_text("old")
-    with pytest.raises(RuntimeError):
-        with atomic_directory(out, force=True) as tmp:
-            (tmp / "new.txt").write_text("half")
-            raise RuntimeError("boom")
+    with pytest.raises(RuntimeError), atomic_directory(out, force=True) as tmp:
+        (tmp / "new.txt").write_text("half")
+        raise RuntimeError("boom")
     assert sorted(p.name for p in out.iterdir()) == ["old.txt"]
     with atomic_directory(out, force=True) as tmp:
         (tmp / "new.txt").write_text("new")

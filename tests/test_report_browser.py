@@ -20,9 +20,9 @@ import pytest
 
 matplotlib = pytest.importorskip("matplotlib")
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.pyplot as plt
 
-from skdelay._html import write_html  # noqa: E402
+from skdelay._html import write_html
 
 FLAGS = [
     "--headless",
@@ -120,7 +120,7 @@ def _with_dump_dom(path):
         cmd = [CHROMIUM, *FLAGS, f"--user-data-dir={profile}", "--virtual-time-budget=10000",
                "--dump-dom", probe.as_uri()]
         dom = subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=True).stdout
-    match = re.search(r'<pre id="skdelay-probe">(.*?)</pre>', dom, re.S)
+    match = re.search(r'<pre id="skdelay-probe">(.*?)</pre>', dom, re.DOTALL)
     assert match, "Chromium did not run the page's load handler"
     import html as _html
 
@@ -159,6 +159,17 @@ def test_tiny_report_renders(tmp_path):
     _check_page(path, ["tiny report", "lambda_max", "10.2", "3.4"], min_images=1)
 
 
+def test_dump_dom_fallback_sees_the_same(tmp_path):
+    fig, ax = plt.subplots(figsize=(3, 2))
+    ax.plot([0, 1], [1, 0])
+    path = write_html(tmp_path / "t.html", "fallback",
+                      [("f", fig), ("t", pd.DataFrame({"x": [7.25]}))])
+    plt.close(fig)
+    seen = _with_dump_dom(path)
+    assert [img["w"] > 0 for img in seen["images"]] == [True]
+    assert "7.25" in seen["text"]
+
+
 def test_broken_image_is_detected(tmp_path):
     path = tmp_path / "broken.html"
     path.write_text('<html><body><img src="data:image/png;base64,AAAA"></body></html>')
@@ -167,14 +178,17 @@ def test_broken_image_is_detected(tmp_path):
 
 
 def test_analysis_report_renders(tmp_path):
-    from skdelay._analysis import analyze_series
     from _cli_data import small_delay_series
+
+    from skdelay._analysis import analyze_series
 
     x, tau0 = small_delay_series()
     result = analyze_series(x, m=(2, 3), tau_min=tau0 - 4, tau_max=tau0 + 4,
                             quick=True, random_state=0)
     result.save(tmp_path / "out")
     page = tmp_path / "out" / "report.html"
-    expected = [f"{result.summary_row()['delay']:d}", "Kaplan", "forecast error"]
+    row = result.summary_row()
+    expected = [f"{row['delay']} +- {row['delay_error']:.1f}", f"{row['D_KY']:.2f}",
+                "Kaplan-Yorke", "forecast error", "Validation of the iterated models"]
     _check_page(page, expected, min_images=4)
     assert os.path.getsize(page) < 5_000_000

@@ -136,4 +136,5 @@ def fit_effect(effect, problem, base_chain=()):
 
 
 def _clean(params):
-    return {k: (v if isinstance(v, str) or v is None else float(v)) for k, v in params.items()}
+    return {k: (v if isinstance(v, str) or v is None else float(v)) for k, v in params.items()
+            if not isinstance(v, (bool, np.bool_))}

@@ -429,9 +429,3 @@ def indicator_gap(z):
     """Excess of the mean squared z-score over its null value 1 (>= 0)."""
     return float(max(np.mean(np.square(z)) - 1.0, 0.0))
 
-
-def pair_gap(real, runs, var):
-    """Excess over 1 of the mean squared distance between ``real`` and each run, in units of
-    ``2 var`` (the spread of the difference of two independent runs); capped per bin."""
-    z = (np.asarray(real)[None, :] - np.asarray(runs)) / np.sqrt(2.0 * var)
-    return indicator_gap(np.clip(z, -Z_CAP, Z_CAP))

@@ -301,16 +301,23 @@ class Outliers(Effect):
 
     def guess(self, real, sim, sample_dt):
         rate, size = spikes(real, sim)
-        if rate == 0.0:
+        detected = rate * len(real) >= 10
+        if not detected:
             rate, size = 1e-3, 4.0
-        # spikes inflate the std of the real series
-        size = size * np.sqrt(1.0 + rate * size**2)
-        return {"rate": _clamp(rate, self.bounds["rate"]), "size": _clamp(size, self.bounds["size"])}
+        return {"rate": _clamp(rate, self.bounds["rate"]), "size": _clamp(size, self.bounds["size"]),
+                "detected": detected}
 
     def search_bounds(self, guess, context):
         r, s = guess["rate"], guess["size"]
+        if guess.get("detected"):  # counted spikes: keep the count, refine the height
+            return {"size": (max(s / 1.3, 1.0), min(s * 1.3, 50.0))}
         return {"rate": (max(r / 3, 1e-5), min(r * 3, 0.1)),
                 "size": (max(s / 2, 1.0), min(s * 2, 50.0))}
+
+    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0):
+        return (f"spikes at a rate of {_fmt(params['rate'])} per sample, typical height "
+                f"{_fmt(params['size'] * scale)} (units of real data) = {_fmt(params['size'])} "
+                "x signal std")
 
     def apply(self, x, params, *, sample_dt=1.0, random_state=None):
         x = np.array(x, dtype=float)

@@ -15,7 +15,7 @@ import numpy as np
 from joblib import Parallel, delayed
 
 from .._checks import check_random_state
-from ._indicators import ensemble_stats, make_indicators, pair_gap, profiles, zscores
+from ._indicators import ensemble_stats, indicator_gap, make_indicators, profiles, zscores
 from ._signature import zscore
 
 
@@ -41,6 +41,17 @@ def _check_run(x, n, what):
     if np.ptp(x) == 0:
         raise SimulationFailed(f"{what} returned a constant series (dead dynamics).")
     return x
+
+
+#: an ensemble's own spread counts up to this multiple of the clean variance
+SPREAD_CAP = 25.0
+
+
+def _spread(features, base_var):
+    """Ensemble mean and the variance used for its z-scores (see ``GapProblem._compare``)."""
+    f = np.asarray(features)
+    own = f.var(axis=0, ddof=1) if f.shape[0] > 1 else np.zeros(f.shape[1])
+    return f.mean(axis=0), np.maximum(base_var, np.minimum(own, SPREAD_CAP * base_var))
 
 
 def _kw(overrides):
@@ -131,11 +142,12 @@ class GapProblem:
             runs = self.base
         out = []
         for j, x in enumerate(runs):
+            n_run = x.size
             for eff, params in obs_part:
                 x = np.asarray(eff.apply(x, params, sample_dt=self.sample_dt,
                                          random_state=self._effect_seed(j, eff.name)), dtype=float)
                 _check_run(x, 16, f"effect {eff.name!r} with {params}")
-            out.append(x)
+            out.append(x[:n_run])  # never longer than the run (a slower time base stretches it)
         return out
 
     def run_features(self, overrides, n, seed, names=None):
@@ -158,21 +170,19 @@ class GapProblem:
     def _compare(self, feats, runs=None):
         """Real vs an ensemble, every bin in units of the clean sim-vs-sim spread.
 
-        The gap of an indicator compares the real features with *each* run of
-        the ensemble (``z = (real - run) / sqrt(2 var_sim)``), so an effect
-        cannot hide a discrepancy by making its runs scatter widely; ``z`` in
-        the result is that of the ensemble mean (for localisation).
+        The variance of a bin is the clean spread, or the ensemble's own spread
+        where the effect makes the runs scatter more (random spikes, noise), but
+        at most ``SPREAD_CAP`` times the clean variance: an effect cannot hide a
+        discrepancy by making its runs scatter without bound.
         """
         gaps, zs, means, stds = {}, {}, {}, {}
         for k, f in feats.items():
-            var = self.base_var[k]
             real = self.real_features[k]
             if self.indicators[k].paired and runs is not None and runs is not self.base:
                 real = self.indicators[k].profile(self.real_z, database=zscore(runs[0]))[0]
-            gaps[k] = pair_gap(real, f, var)
-            means[k] = f.mean(axis=0)
-            zs[k] = zscores(real, means[k], var, f.shape[0])
-            stds[k] = np.sqrt(var)
+            mean, var = _spread(f, self.base_var[k])
+            z = zscores(real, mean, var, f.shape[0])
+            gaps[k], zs[k], means[k], stds[k] = indicator_gap(z), z, mean, np.sqrt(var)
         return Evaluation(float(sum(gaps.values())), gaps, zs, means, stds, runs)
 
     def _null_gaps(self):
@@ -184,8 +194,8 @@ class GapProblem:
             for k, (f, blocks) in self.base_features.items():
                 others = np.delete(f, j, axis=0)
                 ob = None if blocks is None else np.delete(blocks, j, axis=0)
-                var = ensemble_stats(others, self.indicators[k], ob)[1]
-                total += pair_gap(f[j], others, var)
+                mean, var = _spread(others, ensemble_stats(others, self.indicators[k], ob)[1])
+                total += indicator_gap(zscores(f[j], mean, var, others.shape[0]))
             out.append(total)
         return np.array(out)
 

@@ -121,20 +121,23 @@ def pile_ups(real, *, min_fraction=5e-4, min_count=5):
 
 
 def spikes(real, sims, *, threshold=8.0):
-    """``(rate, size)`` of isolated spikes in ``real`` (size in std units of ``real``).
+    """``(rate, size)`` of isolated spikes in ``real``; ``size`` is the median spike height
+    in units of the std of ``real`` without its spikes.
 
     A sample is a spike when its deviation from the 5-point running median is
     larger than ``threshold`` times the 99.9th percentile deviation seen in the
     clean simulations (so the dynamics' own sharp features do not count).
     """
-    z = zscore(real)
-    dev = np.abs(z - _running_median(z, 5))
+    x = np.asarray(real, dtype=float)
+    med = _running_median(x, 5)
+    dev = np.abs(x - med)
     ref = [np.abs(zscore(s) - _running_median(zscore(s), 5)) for s in np.atleast_2d(sims)[:2]]
-    scale = max(float(np.quantile(np.concatenate(ref), 0.999)), 1e-6)
-    hits = dev > max(threshold * scale, 0.5)
+    scale = max(float(np.quantile(np.concatenate(ref), 0.999)), 1e-6) * x.std()
+    hits = dev > max(threshold * scale, 0.5 * x.std())
     if not np.any(hits):
         return 0.0, 0.0
-    return float(np.mean(hits)), float(np.median(dev[hits]))
+    clean = np.where(hits, med, x)
+    return float(np.mean(hits)), float(np.median(dev[hits]) / clean.std())
 
 
 def white_floor(real, sims, sample_dt, nperseg=1024):
