@@ -72,20 +72,20 @@ def mackey_glass_table(quick):
                     noise=0.005, random_state=1)
         if quick:
             lam1, dky = REFERENCE[tau]
-            exact = dict(n_pos=np.nan, lam1=lam1, dky=dky, hks=np.nan)
+            exact = {"n_pos": np.nan, "lam1": lam1, "dky": dky, "hks": np.nan}
         else:
             t0 = time.perf_counter()
             ex = MackeyGlass(tau=float(tau)).lyapunov_spectrum(n_exp, random_state=0)
-            exact = dict(n_pos=n_positive_flow(ex), lam1=ex.exponents[0],
-                         dky=ex.kaplan_yorke_dimension, hks=ex.ks_entropy,
-                         lam2=ex.exponents[1], time=time.perf_counter() - t0)
+            exact = {"n_pos": n_positive_flow(ex), "lam1": ex.exponents[0],
+                         "dky": ex.kaplan_yorke_dimension, "hks": ex.ks_entropy,
+                         "lam2": ex.exponents[1], "time": time.perf_counter() - t0}
         for m, k in ((3, 30), (5, 40)):
             t0 = time.perf_counter()
             model = fit_model(x, m, tau, k)
             spec = lyapunov_spectrum(model, x, n_exponents=n_exp, flow=True)
             dt = time.perf_counter() - t0
-            est = dict(n_pos=spec.n_positive, lam1=spec.exponents[0], lam2=spec.exponents[1],
-                       dky=spec.kaplan_yorke_dimension, hks=spec.ks_entropy)
+            est = {"n_pos": spec.n_positive, "lam1": spec.exponents[0], "lam2": spec.exponents[1],
+                       "dky": spec.kaplan_yorke_dimension, "hks": spec.ks_entropy}
             tol_d = 0.15 if tau == 100 else 0.10
             tol_n = 1 if tau == 100 else 0
             ok = (abs(est["lam1"] - exact["lam1"]) <= 0.2 * exact["lam1"]

@@ -33,7 +33,7 @@ from skdelay.dynamics import dimension_density, lyapunov_spectrum
 
 OUT = Path(__file__).resolve().parent / "out"
 N_EXPONENTS = {50: 40, 150: 80, 400: 160}
-EXACT_EXPONENTS = {50: 40, 150: 60, 400: 120}
+EXACT_EXPONENTS = {50: 20, 150: 40, 400: 80}
 
 
 def n_positive_flow(lam, spread):

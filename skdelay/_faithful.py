@@ -28,10 +28,12 @@ THRESHOLDS = {
 }
 
 
-def _default_taus(series, m_values, n_jobs):
+def _default_taus(series, m_values, tau_grid, random_state, n_jobs):
     from ._selection import forecast_error_curve
 
-    curve = forecast_error_curve(series, m=tuple(m_values), n_jobs=n_jobs)
+    curve = forecast_error_curve(series, m=tuple(m_values), tau=tau_grid,
+                                 n_queries=min(series.size // 2, 5000),
+                                 random_state=random_state, n_jobs=n_jobs)
     return {m: int(curve[m].idxmin()) for m in m_values}
 
 
@@ -51,17 +53,17 @@ def _compare(s, run, chi_m, chi_tau, sample_dt, seed):
     freqs, psd = validation.power_spectrum(a, sample_dt=sample_dt)
     cum = np.cumsum(psd) / psd.sum()
     f_max = float(freqs[min(np.searchsorted(cum, 0.99) + 1, freqs.size - 1)])
-    chi = dict(m=chi_m, tau=chi_tau, random_state=seed, n_queries=min(n, 5000))
-    return dict(
-        hist_distance=validation.histogram_distance(a, run).distance,
-        hist_ref=validation.histogram_distance(a, b).distance,
-        spectrum_distance=validation.spectrum_distance(
+    chi = {"m": chi_m, "tau": chi_tau, "random_state": seed, "n_queries": min(n, 5000)}
+    return {
+        "hist_distance": validation.histogram_distance(a, run).distance,
+        "hist_ref": validation.histogram_distance(a, b).distance,
+        "spectrum_distance": validation.spectrum_distance(
             a, run, sample_dt=sample_dt, max_frequency=f_max).distance,
-        spectrum_ref=validation.spectrum_distance(
+        "spectrum_ref": validation.spectrum_distance(
             a, b, sample_dt=sample_dt, max_frequency=f_max).distance,
-        chi=validation.cross_prediction_error(a, run, **chi),
-        chi_ref=validation.cross_prediction_error(a, b, **chi),
-    )
+        "chi": validation.cross_prediction_error(a, run, **chi),
+        "chi_ref": validation.cross_prediction_error(a, b, **chi),
+    }
 
 
 def _fit(series, m, tau, n_neighbors, ridge, theiler_window):
@@ -73,10 +75,10 @@ def _fit(series, m, tau, n_neighbors, ridge, theiler_window):
     return model.fit(X, y)
 
 
-def minimal_embedding(series, *, tau=None, m_max=5, m_min=1, n_steps=None, n_neighbors=None,
-                      ridge=1e-3, theiler_window=2, n_transient=None, n_exponents=None,
-                      chi_m=None, sample_dt=1.0, thresholds=None, random_state=None,
-                      n_jobs=None):
+def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_min=1,
+                      n_steps=None, n_neighbors=None, ridge=1e-3, theiler_window=2,
+                      n_transient=None, n_exponents=None, chi_m=None, sample_dt=1.0,
+                      thresholds=None, random_state=None, n_jobs=None):
     """Smallest window length ``m`` whose iterated model reproduces the data.
 
     For ``m = m_min .. m_max``: fit ``Pipeline(TwoWindowEmbedding(m, tau_m),
@@ -113,7 +115,10 @@ def minimal_embedding(series, *, tau=None, m_max=5, m_min=1, n_steps=None, n_nei
         The data, sampled at step 1 (``sample_dt`` only sets units).
     tau : int or dict {m: int}, default=None
         Delay in samples for all ``m`` or per ``m``; default: the minimum of
-        each ``m``'s forecast-error curve (:func:`~skdelay.forecast_error_curve`).
+        each ``m``'s forecast-error curve (:func:`~skdelay.forecast_error_curve`,
+        the scan behind :class:`~skdelay.DelaySelectorCV`) over ``tau_grid``.
+    tau_grid : iterable of int, default=range(1, 101)
+        Delays scanned when ``tau`` is None (must cover the feedback delay).
     m_max, m_min : int, default=5, 1
         Window lengths to test.
     n_steps : int, default=None
@@ -169,7 +174,7 @@ def minimal_embedding(series, *, tau=None, m_max=5, m_min=1, n_steps=None, n_nei
                          f"{sorted(THRESHOLDS)}.")
     th = dict(THRESHOLDS, **(thresholds or {}))
     if tau is None:
-        taus = _default_taus(s, m_values, n_jobs)
+        taus = _default_taus(s, m_values, tau_grid, int(rng.randint(2**31)), n_jobs)
     elif isinstance(tau, dict):
         missing = [m for m in m_values if m not in tau]
         if missing:
@@ -199,7 +204,7 @@ def minimal_embedding(series, *, tau=None, m_max=5, m_min=1, n_steps=None, n_nei
         run = iterate(model, s[start:start + dim], n_steps + skip, on_escape="ignore")
         run = np.asarray(run[skip:])
         bounded = run.size == n_steps and np.ptp(run) > 0
-        row = dict(tau=t_m, bounded=bool(bounded))
+        row = {"tau": t_m, "bounded": bool(bounded)}
         if bounded:
             row.update(_compare(s, run, chi_m, chi_tau, sample_dt, int(rng.randint(2**31))))
         n_exp = min(dim, 30) if n_exponents is None else min(dim, int(n_exponents))

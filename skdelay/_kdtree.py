@@ -43,10 +43,8 @@ def build_tree(data):
             row = perm[p]
             for j in range(d):
                 v = data[row, j]
-                if v < box_lo[node, j]:
-                    box_lo[node, j] = v
-                if v > box_hi[node, j]:
-                    box_hi[node, j] = v
+                box_lo[node, j] = min(box_lo[node, j], v)
+                box_hi[node, j] = max(box_hi[node, j], v)
         if hi - lo <= LEAF_SIZE:
             continue
         dim = 0

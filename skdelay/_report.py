@@ -151,15 +151,17 @@ def fig_space_time(result):
 # ----------------------------------------------------------------------------------- pages
 def _row_table(result, scale=1.0, unit="1/time unit"):
     r = result.summary_row()
+    ge = "" if r["D_KY_closed"] else ">= "
     rows = {
         "delay [samples]": f"{r['delay']} +- {r['delay_error']:.1f}",
         "delay [time units]": f"{r['delay_time']:g}",
         "window length m of the model": r["m"],
         "positive Lyapunov exponents N": r["N"],
         f"largest exponent lambda_max [{unit}]": f"{r['lambda_max'] * scale:.4g}",
-        "Kaplan-Yorke dimension D_KY": f"{r['D_KY']:.2f}",
+        "Kaplan-Yorke dimension D_KY": f"{ge}{r['D_KY']:.2f}",
         f"KS entropy h_KS [{unit}]": f"{r['h_KS'] * scale:.4g}",
-        f"dimension density D_KY/tau [{unit}]": f"{r['D_KY/tau'] * scale:.4g}",
+        f"dimension density D_KY/tau [{unit}]": f"{ge}{r['D_KY/tau'] * scale:.4g}",
+        "exponents computed": r["n_exponents"],
         "minimal faithful m (m_d)": "none" if r["minimal_m"] is None else r["minimal_m"],
     }
     return pd.Series(rows, name="value").rename_axis("quantity")

@@ -23,7 +23,6 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-
 _GROWTH_LIMIT = 1e6
 
 

@@ -167,6 +167,8 @@ def build_parser():
                          "autocorrelation revival, at most 500)")
     an.add_argument("--n-queries", type=_int_at_least(100), default=None, metavar="Q",
                     help="query points per scan cell (default: automatic)")
+    an.add_argument("--quick", action="store_true",
+                    help="smaller query sets, runs and spectra (a preview in seconds)")
     an.add_argument("--out", "-o", default="skdelay-out", metavar="DIR",
                     help="output directory (default skdelay-out)")
 
@@ -261,7 +263,8 @@ def _prepare_analyze(args):
         say = _progress(args)
         start = time.perf_counter()
         result = _analysis.analyze_series(
-            series.to_numpy(), **options, n_jobs=args.n_jobs, random_state=args.seed,
+            series.to_numpy(), **options, quick=args.quick, n_jobs=args.n_jobs,
+            random_state=args.seed,
             verbose=0 if args.quiet else 10, progress=say,
             name=f"{Path(args.file).name}" + (f" [{series.name}]" if args.column else ""),
         )

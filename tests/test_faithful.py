@@ -21,7 +21,7 @@ def table(mg17):
 
 
 def test_table_layout(table):
-    tab, m_d = table
+    tab, _m_d = table
     assert list(tab.index) == [1, 2, 3, 4] and tab.index.name == "m"
     for col in ("tau", "bounded", "hist_distance", "hist_ref", "spectrum_distance",
                 "spectrum_ref", "chi", "chi_ref", "lambda_1", "d_ky", "h_ks", "n_positive",
@@ -59,3 +59,9 @@ def test_tau_per_m_and_errors(mg17):
                                random_state=1)
     assert tab["tau"].tolist() == [16, 17]
     assert np.isfinite(tab["chi"]).all()
+
+
+def test_default_delays_from_forecast_error_scan(mg17):
+    tab, _ = minimal_embedding(mg17[:10_000], tau_grid=range(10, 25), m_min=2, m_max=3,
+                               n_steps=3000, random_state=0)
+    assert tab["tau"].between(16, 18).all()

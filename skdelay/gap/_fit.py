@@ -36,13 +36,14 @@ class _Objective:
         self.effect, self.problem, self.base_chain = effect, problem, list(base_chain)
         self.n_evals = 0
         self.best = (np.inf, None)
+        self.last_error = None
 
     def __call__(self, params):
         self.n_evals += 1
         try:
             gap = self.problem.evaluate(self.base_chain + [(self.effect, params)], "fast").gap
-        except SimulationFailed:
-            gap = np.inf
+        except SimulationFailed as exc:
+            gap, self.last_error = np.inf, exc
         if gap < self.best[0]:
             self.best = (gap, dict(params))
         return gap
@@ -122,7 +123,8 @@ def fit_effect(effect, problem, base_chain=()):
         else:
             params = generic_search(effect, problem, guess, objective)
         if not np.isfinite(objective.best[0]) and objective.n_evals:
-            raise SimulationFailed("the simulator failed for every parameter value tried.")
+            raise SimulationFailed(f"the simulator failed for every parameter value tried "
+                                   f"(last: {objective.last_error})")
         final = problem.evaluate(list(base_chain) + [(effect, params)], "full")
         out.update(params=_clean(params), gap_after=final.gap, gap_fast=objective.best[0],
                    gaps=final.gaps)
