@@ -28,7 +28,7 @@ def example_delay_scan():
     """Forecast-error dips locate the delay of the laser data (tau0 = 150)."""
     import matplotlib.pyplot as plt
 
-    from skdelay._selection import forecast_error_curve, locate_dips
+    from skdelay import forecast_error_curve, locate_dips
     from skdelay.datasets import load_laser
     from skdelay.plotting import plot_forecast_error
 
@@ -40,7 +40,7 @@ def example_delay_scan():
     plot_forecast_error(err, logy=True, ax=ax)
     ax.axvline(laser.delay_samples, color="k", ls=":", label="true delay")
     ax.set_title("delay per m: " + ", ".join(
-        f"{m}: {row.delay:.1f}+-{row.half_width:.1f}" for m, row in dips.iterrows()))
+        f"{m}: {row.delay:.1f}+-{row.half_width:.1f}" for m, row in dips.iterrows()), fontsize=9)
     return fig
 
 
@@ -49,9 +49,7 @@ def example_lyapunov_spectrum():
     import matplotlib.pyplot as plt
     from sklearn.pipeline import make_pipeline
 
-    from skdelay._embedding import TwoWindowEmbedding, required_lags
-    from skdelay._local_linear import LocalLinearDelayMap
-    from skdelay._windows import lagged_windows
+    from skdelay import LocalLinearDelayMap, TwoWindowEmbedding, lagged_windows, required_lags
     from skdelay.dynamics import lyapunov_spectrum
     from skdelay.plotting import plot_lyapunov_spectrum
     from skdelay.systems import MackeyGlass
@@ -77,9 +75,7 @@ def example_model_validation():
     import numpy as np
     from sklearn.pipeline import make_pipeline
 
-    from skdelay._embedding import TwoWindowEmbedding, required_lags
-    from skdelay._local_linear import LocalLinearDelayMap
-    from skdelay._windows import lagged_windows
+    from skdelay import LocalLinearDelayMap, TwoWindowEmbedding, lagged_windows, required_lags
     from skdelay.dynamics import iterate
     from skdelay.plotting import plot_histograms, plot_power_spectra
     from skdelay.systems import MackeyGlass
@@ -104,9 +100,7 @@ def example_transplant():
     import matplotlib.pyplot as plt
     from sklearn.pipeline import make_pipeline
 
-    from skdelay._embedding import TwoWindowEmbedding, required_lags
-    from skdelay._local_linear import LocalLinearDelayMap
-    from skdelay._windows import lagged_windows
+    from skdelay import LocalLinearDelayMap, TwoWindowEmbedding, lagged_windows, required_lags
     from skdelay.dynamics import iterate
     from skdelay.plotting import plot_histograms, plot_power_spectra
     from skdelay.systems import MackeyGlass
@@ -134,9 +128,10 @@ def example_rescaled_collapse():
     from skdelay.systems import MackeyGlass
 
     spectra, taus = {}, {}
-    for tau in (60.0, 120.0, 240.0):
-        n = int(tau // 6)
-        spec = MackeyGlass(tau=tau).lyapunov_spectrum(n, duration=10_000.0, random_state=0)
+    for tau in (50.0, 100.0, 200.0):
+        n = int(tau // 5)                      # same range of i / tau for every delay
+        spec = MackeyGlass(tau=tau).lyapunov_spectrum(n, duration=3000.0, dt=0.1,
+                                                      random_state=0)
         spectra[f"tau = {tau:g}"], taus[f"tau = {tau:g}"] = spec, tau
     fig, ax = plt.subplots(figsize=(7, 4), layout="constrained")
     plot_lyapunov_spectrum(spectra, tau=taus, rescaled=True, ax=ax)

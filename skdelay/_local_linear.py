@@ -95,10 +95,19 @@ def local_affine(Vq, Vn, yn, weight, *, order=1, ridge=1e-3, fallback=0.0):
     pred : ndarray (n,)
         ``b + A . Vq`` evaluated in the centred, better conditioned form.
     """
-    n, _, p = Vn.shape
-    mu, ybar, G, rhs, wsum = _centred_moments(np.ascontiguousarray(Vn, dtype=np.float64),
-                                              np.ascontiguousarray(yn, dtype=np.float64),
-                                              np.ascontiguousarray(weight, dtype=np.float64))
+    moments = _centred_moments(np.ascontiguousarray(Vn, dtype=np.float64),
+                               np.ascontiguousarray(yn, dtype=np.float64),
+                               np.ascontiguousarray(weight, dtype=np.float64))
+    return solve_moments(Vq, *moments, order=order, ridge=ridge, fallback=fallback)
+
+
+def solve_moments(Vq, mu, ybar, G, rhs, wsum, *, order=1, ridge=1e-3, fallback=0.0):
+    """Affine maps from centred neighbourhood moments (see :func:`local_affine`).
+
+    Solves the stacked, ridge-regularised normal equations ``G a = rhs`` of a
+    whole batch with one ``np.linalg.solve`` call; modifies ``G`` and ``ybar``.
+    """
+    n, p = mu.shape
     empty = wsum == 0
     ybar[empty] = fallback
     A = np.zeros((n, p))

@@ -63,9 +63,9 @@ def fig_correlations(result):
         curve = rev[key]
         ax.plot(np.arange(curve.size), curve, lw=1, color="#345")
         ax.axvline(result.delay, color="#d62728", lw=1, ls="--", label=f"delay {result.delay}")
-        peak = rev.get(f"{key}_revival")
+        peak = rev.get(f"{key}_strongest")
         if peak is not None:
-            ax.axvline(peak, color="#888", lw=1, ls=":", label=f"first revival {peak}")
+            ax.axvline(peak, color="#888", lw=1, ls=":", label=f"strongest revival {peak}")
         ax.set_xlabel("lag [samples]")
         ax.set_ylabel(label)
         ax.legend(fontsize=8)
@@ -83,6 +83,17 @@ def fig_spectra(result, scale=1.0, unit="1/time unit"):
     ax.set_ylabel(f"lambda_i [{unit}]")
     ax.set_title("Lyapunov spectra of the fitted models")
     return fig
+
+
+def _display_m(result):
+    """The model shown in the time-series and space-time panels.
+
+    The minimal faithful one if there is one, else the one whose free run
+    lasted longest (ties: the largest m).
+    """
+    if result.minimal_m is not None and result.minimal_m in result.runs:
+        return result.minimal_m
+    return max(result.runs, key=lambda m: (result.runs[m].size, m))
 
 
 def _runs(result):
@@ -112,7 +123,7 @@ def fig_distributions(result, sample_dt):
 def fig_series(result, sample_dt):
     """A stretch of the data above the same length of the model run."""
     plt = _plt()
-    m = result.m
+    m = _display_m(result)
     run = result.runs.get(m, np.empty(0))
     length = int(min(result.series.size, max(500, 6 * result.delay)))
     fig, axes = plt.subplots(2, 1, figsize=(10, 3.8), sharex=True, sharey=True,
@@ -136,10 +147,11 @@ def fig_space_time(result):
     d = result.delay
     candidates = np.arange(max(2, d - 2), d + max(4, d // 5) + 0.25, 0.5)
     period, _ = best_space_time_period(result.series[: 60 * (d + 20)], candidates)
-    run = result.runs.get(result.m, np.empty(0))
+    m = _display_m(result)
+    run = result.runs.get(m, np.empty(0))
     panels = [("data", result.series)]
     if run.size > 4 * period:
-        panels.append((f"model m = {result.m}", run))
+        panels.append((f"model m = {m}", run))
     fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 4), squeeze=False,
                              layout="constrained")
     for ax, (label, x) in zip(axes[0], panels):
@@ -185,9 +197,11 @@ def analysis_sections(result, *, scale=1.0, unit="1/time unit", prefix=""):
     intro = (
         f"<p>{html.escape(result.name)}: {result.series.size} samples, sampling interval "
         f"{dt:g}. Delays in samples; exponents per {html.escape(unit.split('/', 1)[-1])}. "
-        f"First revival of the autocorrelation: {rev.get('acf_revival')}, of the mutual "
-        f"information: {rev.get('mi_revival')} (they lie beyond the delay by the response "
-        "time).</p>"
+        f"Strongest revival of the autocorrelation: lag {rev.get('acf_strongest')}, of the "
+        f"mutual information: lag {rev.get('mi_strongest')} (first revivals: "
+        f"{rev.get('acf_revival')}, {rev.get('mi_revival')}). For delay systems the strong "
+        "revival lies slightly beyond the delay (by the response time); the forecast-error "
+        f"dip gives the delay itself: {result.delay}.</p>"
     )
     items = [
         (f"{prefix}Summary", [intro, _row_table(result, scale, unit)]),
@@ -260,9 +274,11 @@ def write_demo_report(demo, path):
     table = demo.table.copy()
     sections = [
         ("The paper's table on the laser-like data",
-         [(f"<p>Exponents and entropies in {html.escape(demo.unit)}; <em>exact</em> columns: "
-          "the simulator's own spectrum (tangent dynamics of the delay equation) with the "
-          "same number of exponents. m_d: minimal faithful window length.</p>"), table,
+         [(f"<p>Exponents and entropies in {html.escape(demo.unit)}. Model columns: the "
+           "local linear model with m = 5 at the estimated delay. <em>exact</em> columns: "
+           f"{html.escape(demo.exact_note)}; '&gt;=' marks a lower bound (the spectrum was "
+           "too short to close the Kaplan-Yorke sum). m_d: minimal faithful window "
+           "length.</p>"), table,
           "<p>For comparison, Bünner et al. (CO<sub>2</sub> laser experiment, 1/ms):</p>",
           PAPER_TABLE]),
         ("Rescaled-spectrum collapse", [_safe(fig_collapse, demo)]),

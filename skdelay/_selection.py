@@ -44,7 +44,7 @@ from skdelay._embedding import (
 from skdelay._local_linear import (
     _CHUNK_VALUES,
     LocalLinearDelayMap,
-    local_affine,
+    solve_moments,
     tree_neighbours,
 )
 from skdelay._windows import series_from_lagged
@@ -106,17 +106,19 @@ def _kth_smallest(a, k):
 
 
 @njit(cache=True)
-def _union_rerank(s, q_t, lists, rk2, row_of, u_min, start, m, k, radius2, is_db, stamp,
-                  stamp0, nb_t, weight, reach, bound):
+def _union_rerank(s, q_t, lists, ldist, rk2, row_of, u_min, start, m, k, radius2, is_db,
+                  nb_t, weight, reach, bound):
     """Exact two-window distances over the union of each query's two candidate lists.
 
-    Candidates of query ``q`` are the first-window neighbours ``lists[q]`` and
-    the second-window neighbours ``lists[q - start] + start``; duplicates are
-    skipped through ``stamp``.  The ``k`` nearest (or, with ``radius2 > 0``,
-    every candidate within ``max(radius2, k-th distance)``) go to
-    ``nb_t``/``weight``.  ``reach`` is the squared distance covered, and
-    ``bound = rk2[q] + rk2[q - start]`` a lower bound of the squared distance
-    of every point outside both lists (so ``reach <= bound`` certifies exact k-NN).
+    Candidates of query ``q`` are its first-window neighbours ``lists[q]`` and
+    its second-window neighbours ``lists[q - start] + start``; ``ldist`` holds
+    their list distances (one window), so only the other window is read from
+    the series.  Duplicates are skipped with a small per-query hash set.  The
+    ``k`` nearest (or, with ``radius2 > 0``, every candidate within
+    ``max(radius2, k-th distance)``) go to ``nb_t``/``weight``; ``reach`` is the
+    squared distance covered and ``bound = rk2[q] + rk2[q - start]`` a lower
+    bound of the squared distance of every point outside both lists, so
+    ``reach <= bound`` certifies the exact k-NN.
     """
     n = q_t.size
     kk = lists.shape[1]
@@ -124,29 +126,38 @@ def _union_rerank(s, q_t, lists, rk2, row_of, u_min, start, m, k, radius2, is_db
     cand = np.empty(2 * kk, dtype=np.int64)
     dist = np.empty(2 * kk)
     scratch = np.empty(2 * kk)
+    size = 1
+    while size < 4 * kk:
+        size *= 2
+    table = np.empty(size, dtype=np.int64)
     n_max = is_db.size
     for i in range(n):
         q = q_t[i]
-        mark = stamp0 + i
         r1 = row_of[q - u_min]
         r2 = row_of[q - start - u_min]
+        table[:] = -1
         nc = 0
         for part in range(2):
             row = r1 if part == 0 else r2
             shift = 0 if part == 0 else start
             for c in range(kk):
-                j = lists[row, c]
+                j = np.int64(lists[row, c])
                 if j < 0:
                     continue
                 j += shift
-                if j >= n_max or not is_db[j] or stamp[j] == mark:
+                if j >= n_max or not is_db[j]:
                     continue
-                stamp[j] = mark
-                acc = 0.0
+                h = (j * 2654435761) & (size - 1)
+                while table[h] != -1 and table[h] != j:
+                    h = (h + 1) & (size - 1)
+                if table[h] == j:
+                    continue
+                table[h] = j
+                acc = np.float64(ldist[row, c])  # the list's window ...
+                qa = q - (start if part == 0 else 0)  # ... plus the other one
+                ja = j - (start if part == 0 else 0)
                 for lag in range(m):
-                    d = s[q - lag] - s[j - lag]
-                    acc += d * d
-                    d = s[q - start - lag] - s[j - start - lag]
+                    d = s[qa - lag] - s[ja - lag]
                     acc += d * d
                 cand[nc] = j
                 dist[nc] = acc
@@ -159,9 +170,7 @@ def _union_rerank(s, q_t, lists, rk2, row_of, u_min, start, m, k, radius2, is_db
                 weight[i, c] = False
             continue
         scratch[:nc] = dist[:nc]
-        r = _kth_smallest(scratch[:nc], min(k, nc) - 1)
-        if radius2 > r:
-            r = radius2
+        r = max(_kth_smallest(scratch[:nc], min(k, nc) - 1), radius2)
         reach[i] = r
         used = 0
         for c in range(nc):
@@ -174,14 +183,64 @@ def _union_rerank(s, q_t, lists, rk2, row_of, u_min, start, m, k, radius2, is_db
             weight[i, c] = False
 
 
+@njit(cache=True)
+def _series_moments(s, q_t, nb_t, weight, cols):
+    """Centred neighbourhood moments read straight from the series.
+
+    Same as ``_centred_moments`` for ``Vn = s[nb_t[..., None] - cols]`` and
+    ``yn = s[nb_t + 1]``, without building those arrays; also returns ``Vq``.
+    """
+    n, k = nb_t.shape
+    p = cols.size
+    Vq = np.empty((n, p))
+    mu = np.zeros((n, p))
+    ybar = np.zeros(n)
+    G = np.zeros((n, p, p))
+    rhs = np.zeros((n, p))
+    wsum = np.zeros(n)
+    v = np.empty((k, p))
+    for i in range(n):
+        for a in range(p):
+            Vq[i, a] = s[q_t[i] - cols[a]]
+        ws = 0.0
+        for j in range(k):
+            if not weight[i, j]:
+                continue
+            t = nb_t[i, j]
+            ws += 1.0
+            ybar[i] += s[t + 1]
+            for a in range(p):
+                v[j, a] = s[t - cols[a]]
+                mu[i, a] += v[j, a]
+        wsum[i] = ws
+        if ws == 0.0:
+            continue
+        ybar[i] /= ws
+        for a in range(p):
+            mu[i, a] /= ws
+        for j in range(k):
+            if not weight[i, j]:
+                continue
+            dy = s[nb_t[i, j] + 1] - ybar[i]
+            for a in range(p):
+                da = v[j, a] - mu[i, a]
+                rhs[i, a] += da * dy
+                for b in range(a + 1):
+                    G[i, a, b] += da * (v[j, b] - mu[i, b])
+        for a in range(p):
+            for b in range(a):
+                G[i, b, a] = G[i, a, b]
+    return Vq, mu, ybar, G, rhs, wsum
+
+
 def _gather(s, t, cols):
     return s[t[..., None] - cols]
 
 
 def _fit_errors(s, q_t, nb_t, weight, cols, order, ridge, fallback):
     """Squared one-step errors of the local fits for queries q_t with neighbours nb_t."""
-    _, _, pred = local_affine(_gather(s, q_t, cols), _gather(s, nb_t, cols), s[nb_t + 1],
-                              weight, order=order, ridge=ridge, fallback=fallback)
+    Vq, *moments = _series_moments(s, q_t, nb_t, weight, cols)
+    _, _, pred = solve_moments(Vq, *moments, order=order, ridge=ridge, fallback=fallback)
     return (pred - s[q_t + 1]) ** 2
 
 
@@ -196,8 +255,7 @@ def _errors_exact(s, m, taus, db_t, q_t, *, k, order, ridge, radius, theiler, wo
     fallback = float(s[db_t + 1].mean())
     for i, tau in enumerate(taus):
         cols = two_window_columns(m, tau)
-        V = _gather(s, db_t, cols)
-        tree = cKDTree(V)
+        tree = cKDTree(_gather(s, db_t, cols))
         Vq = _gather(s, q_t, cols)
         kk = k * (10 if radius else 1)
         for sl in _chunks(q_t.size, kk * 2 * m):
@@ -214,15 +272,21 @@ def _candidate_lists(s, m, members, needed, n_list, theiler, workers):
     """``n_list`` nearest first-window neighbours (times, -1 = none) of every needed time.
 
     Neighbours come from ``members`` (times); with ``theiler``, members within
-    ``theiler`` samples of the needed time are dropped.  ``rk2`` is the squared
-    distance of the last neighbour queried: every member outside a list is at
-    least that far away.
+    ``theiler`` samples of the needed time are dropped (from ``n_list`` plus a
+    margin of nearest, so fewer may remain).  ``ldist`` holds their
+    squared first-window distances (float32) and ``rk2`` the squared distance
+    of the last neighbour queried: every member outside a list is at least that
+    far away.
     """
     first = np.arange(m)
     tree = cKDTree(_gather(s, members, first))
-    excl = 0 if theiler is None else 2 * theiler + 1
+    # query a margin for the Theiler-excluded times; on long records the temporal
+    # neighbours are rarely among the nearest, so the margin is capped (a list may then
+    # hold fewer than n_list valid entries, and the bound stays valid)
+    excl = 0 if theiler is None else min(2 * theiler + 1, max(n_list // 2, 1))
     kq = min(members.size, n_list + excl)
     lists = np.full((needed.size, n_list), -1, dtype=np.int32)
+    ldist = np.full((needed.size, n_list), np.inf, dtype=np.float32)
     rk2 = np.empty(needed.size)
     for sl in _chunks(needed.size, 3 * kq):
         d, pos = tree.query(_gather(s, needed[sl], first), k=kq, workers=workers)
@@ -233,10 +297,11 @@ def _candidate_lists(s, m, members, needed, n_list, theiler, workers):
         if theiler is not None:
             keep = np.abs(times - needed[sl, None]) > theiler
         order = np.argsort(~keep, axis=1, kind="stable")[:, :n_list]
-        times = np.where(np.take_along_axis(keep, order, 1),
-                         np.take_along_axis(times, order, 1), -1)
-        lists[sl, :times.shape[1]] = times
-    return lists, rk2
+        kept = np.take_along_axis(keep, order, 1)
+        width = order.shape[1]
+        lists[sl, :width] = np.where(kept, np.take_along_axis(times, order, 1), -1)
+        ldist[sl, :width] = np.where(kept, np.take_along_axis(d, order, 1) ** 2, np.inf)
+    return lists, ldist, rk2
 
 
 def _errors_candidates(s, m, taus, db_t, q_t, *, k, order, ridge, radius, theiler, workers,
@@ -249,10 +314,9 @@ def _errors_candidates(s, m, taus, db_t, q_t, *, k, order, ridge, radius, theile
     u_min = int(needed[0])
     row_of = np.full(int(needed[-1]) - u_min + 1, -1, dtype=np.int64)
     row_of[needed - u_min] = np.arange(needed.size)
-    lists, rk2 = _candidate_lists(s, m, members, needed, n_candidates, theiler, workers)
+    lists, ldist, rk2 = _candidate_lists(s, m, members, needed, n_candidates, theiler, workers)
     is_db = np.zeros(s.size, dtype=np.bool_)
     is_db[db_t] = True
-    stamp = np.full(s.size, -1, dtype=np.int64)
     fallback = float(s[db_t + 1].mean())
     width = k if radius is None else 2 * n_candidates
     nb_t = np.empty((q_t.size, width), dtype=np.int64)
@@ -264,8 +328,8 @@ def _errors_candidates(s, m, taus, db_t, q_t, *, k, order, ridge, radius, theile
     exact = np.zeros(len(taus))
     for i, tau in enumerate(taus):
         cols = two_window_columns(m, tau)
-        _union_rerank(s, q_t, lists, rk2, row_of, u_min, int(starts[i]), m, k, radius2, is_db,
-                      stamp, i * q_t.size, nb_t, weight, reach, bound)
+        _union_rerank(s, q_t, lists, ldist, rk2, row_of, u_min, int(starts[i]), m, k, radius2,
+                      is_db, nb_t, weight, reach, bound)
         exact[i] = np.mean(reach <= bound)
         for sl in _chunks(q_t.size, width * 2 * m):
             sq[i] += _fit_errors(s, q_t[sl], nb_t[sl], weight[sl], cols, order, ridge,
@@ -354,7 +418,7 @@ def scan_series(s, ms, taus, splits, *, k, order, ridge, radius, theiler, n_quer
                     seg[int(m)] = _segment_length(s, int(m), tau_ref, db_t, k, w or 0, d_ref,
                                                   rng, n_min)
         shared = None  # one query set for every m unless the database differs per m
-        for m in ms:
+        for m in ms[::-1]:  # costliest (largest m) first: better load balance
             db_m = db_t[-seg[int(m)]:]
             pool = db_m if test_t is None else test_t
             if n_queries is None or n_queries >= pool.size:

@@ -143,8 +143,9 @@ def build_parser():
                             help="replace the output directory if it exists (atomically)")
     common_out.add_argument("--quiet", "-q", action="store_true",
                             help="no progress display, only the summary")
-    common_out.add_argument("--n-jobs", type=int, default=-1, metavar="J",
-                            help="parallel workers (joblib; default -1 = all cores)")
+    common_out.add_argument("--n-jobs", type=int, default=None, metavar="J",
+                            help="parallel workers (joblib; -1 = all cores; default: all "
+                                 "cores for big scans)")
     common_out.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
 
     an = sub.add_parser(

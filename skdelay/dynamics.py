@@ -190,7 +190,9 @@ def lyapunov_spectrum(model, series, *, n_exponents=None, n_steps=None, sample_d
         the flow).  Its data-driven estimate is only noise, yet it decides
         whether it enters the Kaplan-Yorke sum and the count of positive
         exponents; with ``flow=True`` the exponent closest to zero is set to
-        exactly 0 (its estimate is kept in ``extra["zero_exponent"]``).
+        exactly 0 (its estimate is kept in ``extra["zero_exponent"]``) --
+        unless all computed exponents are positive (the zero is then beyond
+        ``n_exponents``; ``extra["zero_exponent"]`` is None).
     random_state : int, Generator or None, default=0
         Initial tangent vectors.
 
@@ -299,9 +301,11 @@ def lyapunov_spectrum(model, series, *, n_exponents=None, n_steps=None, sample_d
     extra = {"m": mdl.m, "tau": tau, "state_dim": dim, "exclude_self": qidx is not None,
                  "n_transient": int(n_transient), "qr_interval": int(qr_interval)}
     if flow:
-        i0 = int(np.argmin(np.abs(lam)))
-        extra["zero_exponent"] = float(lam[i0] / sample_dt)
-        lam = lam.copy()
-        lam[i0] = 0.0
+        extra["zero_exponent"] = None
+        if lam.min() < 0 or n_exponents == dim:  # the zero lies within the computed range
+            i0 = int(np.argmin(np.abs(lam)))
+            extra["zero_exponent"] = float(lam[i0] / sample_dt)
+            lam = lam.copy()
+            lam[i0] = 0.0
     return LyapunovSpectrum(lam / sample_dt, spread / sample_dt, sample_dt=sample_dt,
                             n_steps=n_used, extra=extra)

@@ -102,7 +102,7 @@ def test_fitted_linear_delay_process_recovers_companion_spectrum():
 @pytest.mark.parametrize(
     "tau, lam1, d_ky, n_pos",
     # reference: Farmer (1982) / exact spectra of skdelay.systems.MackeyGlass
-    [(17, 0.0052, 2.13, 1), (30, 0.0072, 3.55, 2)],
+    [(17, 0.0052, 2.13, 1), (23, 0.0093, 2.82, 1), (30, 0.0072, 3.55, 2)],
 )
 def test_mackey_glass_spectrum_from_noisy_data(tau, lam1, d_ky, n_pos):
     # 3e4 samples (sample_dt = 1), 0.5 % measurement noise; the full-size (1e5) check of
@@ -117,6 +117,16 @@ def test_mackey_glass_spectrum_from_noisy_data(tau, lam1, d_ky, n_pos):
     assert np.all(spec.spread[:3] < 0.15 * lam1)
 
 
+def test_hyperchaotic_mackey_glass_tau100():
+    # exact (skdelay.systems, benchmarks/lyapunov.py): 4 positive besides the zero,
+    # D_KY 10.16, h_KS 0.0098 per time unit; 3e4 noisy samples here, 1e5 in the benchmark
+    x = _mackey_glass(100, 30_000)
+    spec = lyapunov_spectrum(_fit(x, 3, 100, 30), x, n_exponents=20, flow=True)
+    assert abs(spec.n_positive - 4) <= 1
+    assert abs(spec.kaplan_yorke_dimension - 10.16) < 0.15 * 10.16
+    assert abs(spec.ks_entropy - 0.0098) < 0.2 * 0.0098
+
+
 def test_spectrum_along_model_run_and_subset():
     from skdelay.dynamics import iterate
 
@@ -128,6 +138,9 @@ def test_spectrum_along_model_run_and_subset():
     along_data = lyapunov_spectrum(model, x, n_exponents=4, n_steps=15_000)
     assert along_data.n_steps < 15_000
     assert abs(along_run.exponents[0] - along_data.exponents[0]) < 0.0015
+    # flow=True never zeroes a positive exponent when the zero is beyond n_exponents
+    first = lyapunov_spectrum(model, x, n_exponents=1, flow=True)
+    assert first.extra["zero_exponent"] is None and first.exponents[0] > 0.002
 
 
 def test_spectrum_errors():

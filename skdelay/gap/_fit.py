@@ -106,12 +106,13 @@ def fit_effect(effect, problem, base_chain=()):
     """Fit ``effect`` on top of ``base_chain``; return a result dict (never raises).
 
     Keys: ``effect``, ``params``, ``gap_after`` (all indicators), ``gap_fast``,
-    ``gaps`` (per indicator), ``status`` (``"ok"`` or ``"failed: ..."``),
-    ``n_evals``, ``seconds``.
+    ``gaps`` (per indicator), ``evaluation`` (the final :class:`Evaluation`),
+    ``status`` (``"ok"`` or ``"failed: ..."``), ``n_evals``, ``seconds``.
     """
     t0 = time.perf_counter()
     out = {"effect": effect.name, "target": effect.target, "params": {}, "gap_after": np.nan,
-           "gap_fast": np.nan, "gaps": {}, "status": "ok", "n_evals": 0, "seconds": 0.0}
+           "gap_fast": np.nan, "gaps": {}, "evaluation": None, "status": "ok", "n_evals": 0,
+           "seconds": 0.0}
     objective = _Objective(effect, problem, base_chain)
     try:
         guess = initial_params(effect, problem)
@@ -127,7 +128,7 @@ def fit_effect(effect, problem, base_chain=()):
                                    f"(last: {objective.last_error})")
         final = problem.evaluate(list(base_chain) + [(effect, params)], "full")
         out.update(params=_clean(params), gap_after=final.gap, gap_fast=objective.best[0],
-                   gaps=final.gaps)
+                   gaps=final.gaps, evaluation=final)
     except (SimulationFailed, ValueError, TypeError, ArithmeticError, np.linalg.LinAlgError) as exc:
         out["status"] = f"failed: {exc}"
         if "guess" in out:

@@ -349,8 +349,56 @@ class ForecastError(Indicator):
         return (self.taus - 0.5) * self.sample_dt, (self.taus + 0.5) * self.sample_dt
 
 
+class CrossPrediction(Indicator):
+    """log10 of chi / chi_self per state-space cell: how much worse a simulated run predicts
+    the series than the series predicts itself, in 3 x 3 quantile cells of the plane
+    (s_n, s_{n+1-tau}) (the paper's cross-prediction error, localised).
+
+    Paired: the features of a series need a database run (``profile(z, database=...)``).
+    """
+
+    name = "cross_prediction"
+    tier = "full"
+    paired = True
+    feature = "log10 chi / chi_self"
+    unit = "units of real data (current value)"
+    var_floor = 0.02**2
+    n_regions = 3
+    max_len = 10_000
+
+    def setup(self, real, sims, sample_dt, delay_samples):
+        super().setup(real, sims, sample_dt, delay_samples)
+        self.tau = max(1, round(delay_samples))
+        edges = np.quantile(zscore(real), np.linspace(0, 1, self.n_regions + 1))
+        self.edges = self.real_mean + self.real_std * edges
+
+    def profile(self, z, blocks=False, database=None):
+        from ..validation import cross_prediction_by_region
+
+        x = z[: self.max_len]
+        db = x if database is None else database[: self.max_len]
+        table = cross_prediction_by_region(x, db, m=2, tau=self.tau, n_regions=self.n_regions,
+                                           n_queries=400, n_neighbors=20, random_state=0)
+        i = np.searchsorted(np.unique(table["low"]), table["low"])
+        j = np.searchsorted(np.unique(table["delayed_low"]), table["delayed_low"])
+        chi = np.maximum(np.asarray(table["chi"], dtype=float), 1e-12)
+        chi_self = np.maximum(np.asarray(table["chi_self"], dtype=float), 1e-12)
+        out = np.zeros(self.n_regions**2)
+        out[np.asarray(i * self.n_regions + j, dtype=int)] = np.log10(chi / chi_self)
+        return out, None
+
+    def bounds(self):
+        k = np.arange(self.n_regions**2) // self.n_regions
+        return self.edges[k], self.edges[k + 1]
+
+    def labels(self):
+        names = ("low", "middle", "high")
+        return [f"{self.feature}, delayed value {names[j]}" for _ in range(self.n_regions)
+                for j in range(self.n_regions)]
+
+
 FAST = (Spectrum, Histogram, Increments, Autocorrelation, Segment, Levels)
-FULL = (ForecastError,)
+FULL = (ForecastError, CrossPrediction)
 
 
 def profiles(indicators, runs, blocks=False):
@@ -372,9 +420,14 @@ def profiles(indicators, runs, blocks=False):
 
 
 def make_indicators(real, sims, sample_dt, delay_samples):
-    """Set-up instances of every indicator, keyed by name (fast ones first)."""
+    """Set-up instances of every indicator, keyed by name (fast ones first).
+
+    ``cross_prediction`` needs the delay (``delay_samples``) and is left out without it.
+    """
     out = {}
     for cls in FAST + FULL:
+        if cls is CrossPrediction and not delay_samples:
+            continue
         ind = cls()
         ind.setup(real, sims, sample_dt, delay_samples)
         out[ind.name] = ind
