@@ -46,31 +46,37 @@ def _logmix(weak, strong, u):
 
 
 def draw_params(system, effect, u, rng):
-    """Hidden parameters of ``effect`` at strength ``u`` in [0, 1] for ``system``."""
+    """Hidden parameters of ``effect`` at strength ``u`` in [0, 1] for ``system``.
+
+    The ranges run from barely detectable (u = 0) to strong (u = 1); they were
+    set per system from the gap each effect opens (the chaotic, spiky laser
+    hides weak effects better than the smooth Mackey-Glass signal).
+    """
     laser = isinstance(system, CO2LaserFeedback)
     tau0 = system.params["tau"]
     if effect == "measurement_noise":
-        return {"noise": _logmix(0.004, 0.2, u)}
+        return {"noise": _logmix(0.02, 0.5, u) if laser else _logmix(0.004, 0.2, u)}
     if effect == "dynamical_noise":
-        return {"dynamical_noise": _logmix(0.002, 0.05, u) if laser else _logmix(0.001, 0.03, u)}
+        return {"dynamical_noise": _logmix(0.005, 0.1, u) if laser else _logmix(0.001, 0.03, u)}
     if effect == "quantization":
         return {"step": _logmix(0.004, 0.25, u), "phase": float(rng.uniform())}
     if effect == "periodic_interference":
-        return {"frequency": float(rng.uniform(0.02, 0.45)), "amplitude": _logmix(0.004, 0.2, u),
+        return {"frequency": float(rng.uniform(0.02, 0.45)),
+                "amplitude": _logmix(0.01, 0.3, u) if laser else _logmix(0.004, 0.2, u),
                 "phase": float(rng.uniform(0, 2 * np.pi))}
     if effect == "lowpass":
         return {"cutoff": _logmix(0.4, 0.03, u) if laser else _logmix(0.3, 0.02, u)}
     if effect == "delay_mismatch":
-        shift = _logmix(0.3, 4.0, u) if not laser else _logmix(1.0, 12.0, u)
+        shift = _logmix(1.0, 12.0, u) if laser else _logmix(0.3, 4.0, u)
         return {"tau": float(tau0 + rng.choice([-1, 1]) * shift)}
     if effect == "parameter_drift":
         keys = ["b0", "r", "beta"] if laser else ["a", "b", "n"]
         key = str(rng.choice(keys))
         v0 = system.params[key]
-        rel = rng.choice([-1, 1]) * _logmix(0.01, 0.15, u)
+        rel = rng.choice([-1, 1]) * (_logmix(0.04, 0.4, u) if laser else _logmix(0.01, 0.15, u))
         return {"parameter": key, "start": v0, "end": float(v0 * (1 + rel))}
     if effect == "clipping":
-        level = _logmix(2.8, 0.9, u) if not laser else _logmix(3.5, 1.2, u)
+        level = _logmix(3.5, 1.2, u) if laser else _logmix(2.8, 0.9, u)
         side = "high" if laser else str(rng.choice(["high", "low", "both"]))
         return {"low": -level if side in ("low", "both") else -np.inf,
                 "high": level if side in ("high", "both") else np.inf}

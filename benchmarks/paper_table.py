@@ -109,7 +109,8 @@ def main():
     table = pd.DataFrame(rows).set_index("tau0")
     cols = ["N", "N exact", "lambda_max", "lambda_max exact", "D_KY", "D_KY exact",
             "h_KS", "h_KS exact", "D_KY/tau", "D_KY/tau exact", "closed", "closed exact", "sec"]
-    with pd.option_context("display.width", 200, "display.precision", 3):
+    with pd.option_context("display.width", 250, "display.max_columns", 30,
+                           "display.precision", 3):
         print(f"m={args.m}, k={args.k}, ridge={args.ridge}, N={args.n_samples} samples; "
               "lambda_max, h_KS, D_KY/tau in 1/ms ('closed': enough exponents for D_KY)")
         print(table[cols])
@@ -137,7 +138,7 @@ def plot(est_spectra, ex_spectra, delays):
         plot_lyapunov_spectrum(spectra, tau=taus, rescaled=True, ax=ax)
         ax.set_title(title)
         ax.set_xlim(0, 0.35)
-        ax.set_ylim(-3, 2)
+        ax.set_ylim(-2, 1)
     OUT.mkdir(exist_ok=True)
     path = OUT / "rescaled_spectra.png"
     fig.tight_layout()

@@ -288,6 +288,10 @@ def _prepare_demo(args):
     if unknown:
         raise UsageError(f"no embedded laser data for delay(s) {unknown}; choose from "
                          f"{', '.join(map(str, LASER_DELAYS))}")
+    need = 20 * (max(delays) + 20)
+    if args.n_samples is not None and args.n_samples < need:
+        raise UsageError(f"--n-samples {args.n_samples} is too short for the delay "
+                         f"{max(delays)}; use at least {need}")
 
     def run():
         say = _progress(args)

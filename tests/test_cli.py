@@ -286,6 +286,15 @@ def test_demo_reduced(tmp_path, capsys, monkeypatch):
     assert "D_KY" in stdout
 
 
+def test_demo_bad_usage(tmp_path, capsys):
+    out = tmp_path / "demo"
+    code, _, err = run(["demo", "--out", out, "--delays", "77"], capsys)
+    assert_usage_error(code, err, "no embedded laser data")
+    code, _, err = run(["demo", "--out", out, "--n-samples", 3000], capsys)
+    assert_usage_error(code, err, "too short")
+    assert not out.exists()
+
+
 # ---------------------------------------------------------------------------- real process
 def test_console_entry_point_exit_codes(tmp_path):
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1]))

@@ -9,7 +9,7 @@ import pandas as pd
 from joblib import Parallel, delayed
 
 from .._checks import check_positive_int, check_series
-from ._effects import get_effect, resolve_effects
+from ._effects import resolve_effects
 from ._fit import fit_effect
 from ._problem import GapProblem, SimulationFailed
 from ._report import GapReport
@@ -88,11 +88,11 @@ def significance(problem):
             "significant": bool(gap > threshold or max_z > Z_LOCAL)}
 
 
-def _table(results, gap_before, problem):
+def _table(results, gap_before, problem, by_name):
     rows = []
     scale, offset = float(np.std(problem.real)), float(np.mean(problem.real))
     for r in results:
-        eff = get_effect(r["effect"])
+        eff = by_name[r["effect"]]
         ok = r["status"] == "ok"
         after = r["gap_after"] if ok else np.nan
         shrink = 1.0 - max(after, 0.0) / gap_before if (ok and gap_before > 0) else np.nan
@@ -200,12 +200,13 @@ def diagnose_gap(real, simulator, *, sample_dt=1.0, effects=None, random_state=N
     gap_before = problem.before.gap
     parallel = Parallel(n_jobs=n_jobs, verbose=verbose)
     results = parallel(delayed(fit_effect)(e, problem) for e in candidates)
-    table, evaluations = _table(results, gap_before, problem)
+    by_name = {e.name: e for e in candidates}
+    table, evaluations = _table(results, gap_before, problem, by_name)
     best, chain = None, []
     top = table.iloc[0]
     if sig["significant"] and top["status"] == "ok" and top["shrink"] >= MIN_SHRINK:
         best = top["effect"]
-        chain = [(get_effect(best), dict(top["params"]))]
+        chain = [(by_name[best], dict(top["params"]))]
     combined = None
     after = evaluations[0] if chain else None
     if (best is not None and combine and len(candidates) > 1
@@ -213,14 +214,14 @@ def diagnose_gap(real, simulator, *, sample_dt=1.0, effects=None, random_state=N
                  or _max_z(after) > Z_LOCAL)):
         others = [e for e in candidates if e.name != best]
         more = parallel(delayed(fit_effect)(e, problem, chain) for e in others)
-        second, second_evals = _table(more, after.gap, problem)
+        second, second_evals = _table(more, after.gap, problem, by_name)
         s = second.iloc[0]
         if s["status"] == "ok" and s["shrink"] >= MIN_SHRINK:
             combined = {"effects": [best, s["effect"]], "params": [dict(top["params"]),
                         dict(s["params"])], "gap_after": float(s["gap_after"]),
                         "shrink": 1.0 - max(s["gap_after"], 0.0) / gap_before,
                         "table": second}
-            chain = chain + [(get_effect(s["effect"]), dict(s["params"]))]
+            chain = chain + [(by_name[s["effect"]], dict(s["params"]))]
             after = second_evals[0]
     return GapReport.from_problem(problem, table=table, where=where, significance=sig,
                                   best_effect=best, combined=combined, after=after)

@@ -63,24 +63,24 @@ class Effect:
     Examples
     --------
     >>> import numpy as np
-    >>> from skdelay.gap import Effect, register_effect
-    >>> class Offset(Effect):
-    ...     name = "dc_step"
+    >>> from skdelay.gap import EFFECTS, Effect, register_effect, unregister_effect
+    >>> class BaselineStep(Effect):
+    ...     name = "baseline_step"
     ...     bounds = {"size": (0.01, 3.0)}
-    ...     units = {"size": "std of the signal"}
+    ...     units = {"size": "x signal std"}
     ...     description = "a step in the baseline half-way through the record"
     ...     def guess(self, real, sim, sample_dt):
     ...         half = len(real) // 2
-    ...         z = (real - real.mean()) / real.std()
-    ...         return {"size": float(min(max(abs(z[half:].mean() - z[:half].mean()), 0.01), 3.0))}
+    ...         step = abs(real[half:].mean() - real[:half].mean()) / real.std()
+    ...         return {"size": float(np.clip(step, 0.01, 3.0))}
     ...     def apply(self, x, params, *, sample_dt=1.0, random_state=None):
     ...         y = np.array(x, dtype=float)
     ...         y[len(y) // 2:] += params["size"] * y.std()
     ...         return y
-    >>> _ = register_effect(Offset)
-    >>> "dc_step" in __import__("skdelay.gap", fromlist=["EFFECTS"]).EFFECTS
+    >>> _ = register_effect(BaselineStep)
+    >>> "baseline_step" in EFFECTS
     True
-    >>> _ = unregister_effect("dc_step")
+    >>> _ = unregister_effect("baseline_step")
     """
 
     name = None

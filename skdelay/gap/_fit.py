@@ -127,6 +127,8 @@ def fit_effect(effect, problem, base_chain=()):
             raise SimulationFailed(f"the simulator failed for every parameter value tried "
                                    f"(last: {objective.last_error})")
         final = problem.evaluate(list(base_chain) + [(effect, params)], "full")
+        if not np.isfinite(final.gap):
+            raise SimulationFailed(f"the fitted effect gives a non-finite gap ({final.gaps}).")
         out.update(params=_clean(params), gap_after=final.gap, gap_fast=objective.best[0],
                    gaps=final.gaps, evaluation=final)
     except (SimulationFailed, ValueError, TypeError, ArithmeticError, np.linalg.LinAlgError) as exc:

@@ -384,7 +384,9 @@ class CrossPrediction(Indicator):
         chi = np.maximum(np.asarray(table["chi"], dtype=float), 1e-12)
         chi_self = np.maximum(np.asarray(table["chi_self"], dtype=float), 1e-12)
         out = np.zeros(self.n_regions**2)
-        out[np.asarray(i * self.n_regions + j, dtype=int)] = np.log10(chi / chi_self)
+        ratio = np.log10(chi / chi_self)
+        # a cell the series never visits (e.g. a periodic run) carries no information
+        out[np.asarray(i * self.n_regions + j, dtype=int)] = np.where(np.isfinite(ratio), ratio, 0.0)
         return out, None
 
     def bounds(self):
@@ -475,7 +477,8 @@ def ensemble_stats(features, indicator, blocks=None):
 def zscores(values, mean, var, k):
     """z-scores of one run against an ensemble of ``k`` runs (capped at ``Z_CAP``)."""
     z = (np.asarray(values) - mean) / np.sqrt(var * (1.0 + 1.0 / k))
-    return np.clip(z, -Z_CAP, Z_CAP)
+    # an unusable bin (non-finite feature) counts as maximally discrepant
+    return np.clip(np.nan_to_num(z, nan=Z_CAP), -Z_CAP, Z_CAP)
 
 
 def indicator_gap(z):
