@@ -35,7 +35,7 @@ def test_local_maps_match_predict_and_beat_local_constant(smooth_data):
     const = LocalLinearDelayMap(n_neighbors=20, order=0).fit(V, y)
     err0 = np.sqrt(np.mean((const.predict(V[:100], query_index=np.arange(100)) - y[:100]) ** 2))
     assert err1 < 0.1 and err1 < err0 / 1.5
-    A0, b0 = const.local_maps(V[:5])
+    A0, _ = const.local_maps(V[:5])
     assert np.all(A0 == 0)
 
 
@@ -114,7 +114,7 @@ def test_degenerate_neighbourhoods_do_not_crash():
 
 def test_local_affine_empty_neighbourhood_uses_fallback():
     Vn = np.zeros((2, 3, 2))
-    A, b, pred = local_affine(np.zeros((2, 2)), Vn, np.ones((2, 3)),
+    A, _, pred = local_affine(np.zeros((2, 2)), Vn, np.ones((2, 3)),
                               np.array([[0, 0, 0], [1, 1, 0]], bool), fallback=7.0)
     np.testing.assert_allclose(pred, [7.0, 1.0])
     assert np.all(A == 0)

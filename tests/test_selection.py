@@ -175,10 +175,10 @@ def test_n_jobs_and_dask_give_the_same_table(mg30):
     pd.testing.assert_frame_equal(forecast_error_curve(mg30[:4000], n_jobs=2, **kw), ref)
     distributed = pytest.importorskip("distributed")
     pytest.importorskip("dask")
-    with distributed.Client(processes=False, n_workers=1, threads_per_worker=2,
-                            dashboard_address=None):
-        with parallel_config(backend="dask"):
-            dask_table = forecast_error_curve(mg30[:4000], n_jobs=2, **kw)
+    client = distributed.Client(processes=False, n_workers=1, threads_per_worker=2,
+                                dashboard_address=None)
+    with client, parallel_config(backend="dask"):
+        dask_table = forecast_error_curve(mg30[:4000], n_jobs=2, **kw)
     pd.testing.assert_frame_equal(dask_table, ref)
 
 
