@@ -291,7 +291,11 @@ class AnalysisResult:
         return d
 
     def save(self, directory, *, force=False):
-        """Write everything into ``directory`` atomically (see :func:`skdelay._io.atomic_directory`)."""
+        """Write everything into ``directory`` atomically.
+
+        The files are written into a temporary directory next to it, which
+        then replaces ``directory``; an existing non-empty one needs ``force``.
+        """
         from ._io import atomic_directory
 
         with atomic_directory(directory, force=force) as tmp:
@@ -337,7 +341,8 @@ def _fit_model(series, m, tau, n_neighbors):
     return model.fit(X, y)
 
 
-def _covering_spectrum(model, series, *, n_exponents, sample_dt, n_steps, dim, max_doublings=1):
+def _covering_spectrum(model, series, *, n_exponents, sample_dt, n_steps, dim,
+                       max_doublings=1):
     """Lyapunov spectrum with enough exponents to close the Kaplan-Yorke sum (if affordable).
 
     Starts with ``n_exponents`` and doubles (at most ``max_doublings`` times)
@@ -360,8 +365,8 @@ def _covering_spectrum(model, series, *, n_exponents, sample_dt, n_steps, dim, m
 
 def analyze_series(series, *, m=DEFAULT_M, tau_min=1, tau_max=None, sample_dt=1.0,
                    n_queries=None, n_neighbors=None, n_exponents=None, n_run=None,
-                   n_spectrum_steps=None, quick=False, random_state=0, n_jobs=None,
-                   verbose=0, progress=None, name="series"):
+                   n_spectrum_steps=None, n_validation=None, quick=False, random_state=0,
+                   n_jobs=None, verbose=0, progress=None, name="series"):
     """Run the two-window analysis of Bünner et al. on one scalar series.
 
     Steps: autocorrelation and mutual-information revivals; forecast-error
@@ -397,6 +402,10 @@ def analyze_series(series, *, m=DEFAULT_M, tau_min=1, tau_max=None, sample_dt=1.
     n_spectrum_steps : int, default=None
         Steps of the data used for each spectrum (default ``min(n, 100000)``; 5000
         with ``quick``).
+    n_validation : int, default=None
+        Samples (the most recent ones) on which the faithfulness table is
+        computed (default ``min(n, 200000)``; the paper, too, uses shorter
+        segments for the smaller models).
     quick : bool, default=False
         Smaller defaults everywhere (tests, previews).
     random_state : int, default=0
@@ -443,6 +452,7 @@ def analyze_series(series, *, m=DEFAULT_M, tau_min=1, tau_max=None, sample_dt=1.
     n_run = int(n_run or min(n, 2000 if quick else 30_000))
     n_spec = int(n_spectrum_steps or min(n, 5000 if quick else 100_000))
     n_few = 12 if quick else 30  # exponents of the non-reported models
+    n_val = int(n_validation or min(n, 200_000))
     if n_jobs is None:  # worker start-up only pays off for big scans
         n_jobs = -1 if len(ms) * len(taus) * opts["n_queries"] > 300_000 else 1
     timings, t0 = {}, time.perf_counter()
@@ -475,7 +485,7 @@ def analyze_series(series, *, m=DEFAULT_M, tau_min=1, tau_max=None, sample_dt=1.
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         table, m_d = minimal_embedding(
-            s, tau=tau_of, m_min=m_all[0], m_max=m_all[-1], n_steps=n_run,
+            s[n - n_val:], tau=tau_of, m_min=m_all[0], m_max=m_all[-1], n_steps=n_run,
             n_exponents=min(n_few, max(n_exp0.values())), sample_dt=dt, random_state=random_state,
             n_jobs=n_jobs,
         )
@@ -504,7 +514,7 @@ def analyze_series(series, *, m=DEFAULT_M, tau_min=1, tau_max=None, sample_dt=1.
         runs[mm] = np.asarray(run[skip:], dtype=float)
     timings["spectra"] = time.perf_counter() - t3
     timings["total"] = time.perf_counter() - t0
-    opts["n_run"], opts["n_spectrum_steps"] = n_run, n_spec
+    opts["n_run"], opts["n_spectrum_steps"], opts["n_validation"] = n_run, n_spec, n_val
     return AnalysisResult(
         name=name, sample_dt=dt, series=s, revivals=revivals, forecast_error=curve,
         delays=dips, m=ms[-1], spectra=spectra, validation=table, minimal_m=m_d, runs=runs,

@@ -23,7 +23,8 @@ import pandas as pd
 from ._atomic import atomic_path
 from ._checks import check_series
 
-__all__ = ["atomic_directory", "check_output_directory", "read_series", "read_table", "write_series"]
+__all__ = ["atomic_directory", "check_output_directory", "read_series", "read_table",
+           "write_series"]
 
 _TEXT_SUFFIXES = {".csv", ".txt", ".dat", ".tsv", ".asc", ""}
 _NUMBER = re.compile(r"^[+-]?(\d+\.?\d*([eE][+-]?\d+)?|\.\d+([eE][+-]?\d+)?|nan|inf|infinity)$",
@@ -53,7 +54,8 @@ def _read_text(path):
     try:
         lines = _first_data_lines(path)
     except UnicodeDecodeError as exc:  # pragma: no cover - errors="replace" above
-        raise ValueError(f"{path} is not a text file; save the series as .npy, .csv or .txt.") from exc
+        raise ValueError(f"{path} is not a text file; save the series as .npy, .csv or "
+                         ".txt.") from exc
     if not lines:
         raise ValueError(f"{path} holds no data (empty or only '#' comments); "
                          "write one sample per line (one column per channel).")

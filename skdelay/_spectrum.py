@@ -80,7 +80,7 @@ def dimension_density(d_ky, tau):
     Examples
     --------
     >>> from skdelay.dynamics import dimension_density
-    >>> dimension_density(23.8, 400.0)
+    >>> round(dimension_density(23.8, 400.0), 4)
     0.0595
     """
     tau = float(tau)

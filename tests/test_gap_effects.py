@@ -124,6 +124,11 @@ def test_periodic_interference_and_line_guess():
     g = hum.guess(y, sims, 0.5)
     assert g["amplitude"] == pytest.approx(0.05, rel=0.1)
     assert prominence > 1.0
+    # a mains hum in a fast recording: a few periods per record, below the first Welch bin
+    slow = hum.apply(x, {"frequency": 0.0006, "amplitude": 0.2, "phase": 0.0}, sample_dt=0.5)
+    g = hum.guess(slow, sims, 0.5)
+    assert g["frequency"] == pytest.approx(0.0006, abs=0.2 / (len(x) * 0.5))
+    assert g["amplitude"] == pytest.approx(0.2, rel=0.1)
 
 
 def test_lowpass_gain_at_cutoff_and_roll_off_guess():

@@ -38,27 +38,39 @@ def ensemble_psd(sims, sample_dt, n, nperseg=1024):
 def spectral_line(real, sims, sample_dt, nperseg=1024):
     """Strongest narrow line of ``real`` absent from ``sims``.
 
-    Returns ``(frequency, amplitude, phase, prominence)``: frequency refined on
-    the full-length zero-padded DFT (far finer than one Welch bin), amplitude
-    of the sinusoid in standard units of the real series, phase at t = 0
-    (sine convention) and the line's height over the simulated spectrum
-    (log10 units).
+    Lines are sought in the Welch spectrum and, below its second bin (a
+    mains hum in a fast recording is a very slow oscillation), in the
+    full-length periodogram.  Returns ``(frequency, amplitude, phase,
+    prominence)``: frequency refined on the full-length zero-padded DFT (far
+    finer than one Welch bin), amplitude of the sinusoid in standard units of
+    the real series, phase at t = 0 (sine convention) and the line's height
+    over the simulated spectrum (log10 units).
     """
     n = len(real)
     f, pr = welch_psd(real, sample_dt, nperseg)
     _, ps = ensemble_psd(sims, sample_dt, n, nperseg)
     ratio = np.log10(pr[1:] + 1e-300) - np.log10(ps[1:] + 1e-300)
     # narrowness: excess over the running median of the ratio itself
-    base = _running_median(ratio, 9)
-    excess = ratio - base
+    excess = ratio - _running_median(ratio, 9)
     k = int(np.argmax(excess)) + 1
+    centre, width, prominence = f[k], 1.5 * (f[1] - f[0]), float(excess[k - 1])
     z = zscore(real)
     window = np.hanning(n)
+    full = np.abs(np.fft.rfft(z * window)) ** 2
+    ffull = np.fft.rfftfreq(n, d=sample_dt)
+    low = np.flatnonzero((ffull > 1.5 / (n * sample_dt)) & (ffull < 2 * f[1]))
+    if low.size:
+        ref = np.mean([np.abs(np.fft.rfft(zscore(x[:n]) * window)) ** 2
+                       for x in np.atleast_2d(sims)], axis=0)
+        ref = _running_median(ref, 7)
+        lr = np.log10(full[low] + 1e-300) - np.log10(ref[low] + 1e-300)
+        i = int(np.argmax(lr))
+        if lr[i] > max(prominence + 0.5, 1.5):
+            centre, width, prominence = ffull[low[i]], 1.5 * ffull[1], float(lr[i])
     pad = 8
     spec = np.abs(np.fft.rfft(z * window, pad * n))
     fgrid = np.fft.rfftfreq(pad * n, d=sample_dt)
-    df = f[1] - f[0]
-    inside = np.flatnonzero(np.abs(fgrid - f[k]) <= 1.5 * df)
+    inside = np.flatnonzero(np.abs(fgrid - centre) <= width)
     j = int(inside[np.argmax(spec[inside])])
     freq = float(fgrid[j])
     if 0 < j < spec.size - 1:  # parabolic interpolation of the log magnitude
@@ -71,7 +83,7 @@ def spectral_line(real, sims, sample_dt, nperseg=1024):
     amp = float(2.0 * np.abs(coef) / window.sum())
     c0 = _dft(z, t, [freq])[0]
     phase = float(np.angle(c0) + np.pi / 2.0) % (2.0 * np.pi)
-    return freq, amp, phase, float(excess[k - 1])
+    return freq, amp, phase, prominence
 
 
 def _dft(x, t, freqs):
