@@ -18,7 +18,9 @@ Public API
 Delay estimation and models (this namespace): :func:`lagged_windows`,
 :class:`TwoWindowEmbedding`, :class:`LocalLinearDelayMap`,
 :func:`forecast_error_curve`, :class:`DelaySelectorCV`, :func:`autocorrelation`,
-:func:`mutual_information`, :func:`revival_peak`.
+:func:`mutual_information`, :func:`revival_peak`, :func:`locate_dips`, and the
+whole analysis of a recording, :func:`analyze_series` (what ``skdelay analyze``
+runs), with :func:`read_series` for data files.
 
 Submodules: :mod:`skdelay.dynamics` (iterate, Lyapunov spectra, dimension,
 entropy, minimal faithful model), :mod:`skdelay.validation` (cross-prediction,
@@ -30,10 +32,12 @@ spectra), :mod:`skdelay.gap` (sim-to-real gap), :mod:`skdelay.datasets`,
 
 import importlib
 
+from ._analysis import AnalysisResult, analyze_series
 from ._correlation import autocorrelation, mutual_information, revival_peak
-from ._embedding import TwoWindowEmbedding
+from ._embedding import TwoWindowEmbedding, required_lags, two_window_columns
+from ._io import read_series
 from ._local_linear import LocalLinearDelayMap
-from ._selection import DelaySelectorCV, forecast_error_curve
+from ._selection import DelaySelectorCV, forecast_error_curve, locate_dips
 from ._spectrum import LyapunovSpectrum
 from ._windows import lagged_windows
 
@@ -51,15 +55,21 @@ _SUBMODULES = (
 )
 
 __all__ = [
+    "AnalysisResult",
     "DelaySelectorCV",
     "LocalLinearDelayMap",
     "LyapunovSpectrum",
     "TwoWindowEmbedding",
+    "analyze_series",
     "autocorrelation",
     "forecast_error_curve",
     "lagged_windows",
+    "locate_dips",
     "mutual_information",
+    "read_series",
+    "required_lags",
     "revival_peak",
+    "two_window_columns",
     *_SUBMODULES,
 ]
 

@@ -106,7 +106,7 @@ class TwoWindowEmbedding(TransformerMixin, BaseEstimator):
     ----------
     n_features_in_ : int
         Number of lag columns seen in ``fit``.
-    feature_names_in_ : ndarray of shape (n_features_in_,)
+    feature_names_in_ : ndarray of shape (``n_features_in_``,)
         Column names, when ``X`` is a DataFrame.
 
     See Also

@@ -257,7 +257,7 @@ def power_spectrum(x, *, sample_dt=1.0, nperseg=1024):
     -------
     freqs : ndarray
     psd : ndarray
-        Power per unit frequency (units of ``x``^2 times time units).
+        Power per unit frequency (squared units of ``x`` times time units).
 
     Examples
     --------
