@@ -233,8 +233,13 @@ def main(argv=None):
                         args.controls, args.combined, args.seed)
     dt = {label: d for label, _, d in chosen}
     t0 = time.perf_counter()
-    results = Parallel(n_jobs=args.n_jobs, verbose=0)(
-        delayed(run_case)(c, args.n, dt[c["label"]]) for c in cases)
+    results = []
+    for r in Parallel(n_jobs=args.n_jobs, return_as="generator_unordered")(
+            delayed(run_case)(c, args.n, dt[c["label"]]) for c in cases):
+        results.append(r)
+        print(f"[{len(results)}/{len(cases)}] {r['system']} {r['true']} ({r['strength']}) -> "
+              f"{r['found']}  shrink={r['shrink']:.2f}  error={r['error']:.2f}  "
+              f"{r['seconds']:.0f}s", flush=True)
     df = pd.DataFrame(results)
     print(f"\n== {len(df)} cases, n = {args.n}, wall {time.perf_counter() - t0:.0f} s ==")
 
