@@ -1,7 +1,9 @@
 """Tangent dynamics of a delay map and its QR (Benettin) iteration.
 
 The iterated two-window model ``s_{n+1} = b_n + a_n . v_n`` lives on the state
-``x_n = (s_n, s_{n-1}, ..., s_{n-D+1})`` of dimension ``D = tau + m - 1``.  Its
+``x_n = (s_n, s_{n-1}, ..., s_{n-D+1})`` of dimension
+``D = required_lags(m, tau) = max(tau + m // 2, m)`` (the second window is
+centred on the delay, see :class:`skdelay.TwoWindowEmbedding`).  Its
 Jacobian is a *shift* plus one new first row holding ``a_n`` at the lag
 columns of ``v_n``:
 
