@@ -62,15 +62,22 @@ __all__ = [
     "TwoWindowEmbedding",
     "analyze_series",
     "autocorrelation",
+    "classic",
+    "datasets",
+    "dynamics",
     "forecast_error_curve",
+    "gap",
     "lagged_windows",
     "locate_dips",
     "mutual_information",
+    "plotting",
     "read_series",
     "required_lags",
     "revival_peak",
+    "spacetime",
+    "systems",
     "two_window_columns",
-    *_SUBMODULES,
+    "validation",
 ]
 
 

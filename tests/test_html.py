@@ -10,10 +10,9 @@ from skdelay._html import render_html, write_html
 def test_atomic_write_leaves_old_file_on_failure(tmp_path):
     target = tmp_path / "out.txt"
     write_text(target, "old")
-    with pytest.raises(RuntimeError):
-        with atomic_path(target) as tmp:
-            tmp.write_text("half")
-            raise RuntimeError("boom")
+    with pytest.raises(RuntimeError), atomic_path(target) as tmp:
+        tmp.write_text("half")
+        raise RuntimeError("boom")
     assert target.read_text() == "old"
     assert os.listdir(tmp_path) == ["out.txt"]
 
