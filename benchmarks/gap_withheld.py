@@ -45,6 +45,18 @@ def _logmix(weak, strong, u):
     return float(np.exp(np.log(weak) + u * (np.log(strong) - np.log(weak))))
 
 
+_REFERENCE = {}
+
+
+def _reference_z(system):
+    """z-scored long clean run of ``system`` (for clipping levels at given quantiles)."""
+    key = repr(system)
+    if key not in _REFERENCE:
+        x = system.simulate(20000, random_state=1)
+        _REFERENCE[key] = (x - x.mean()) / x.std()
+    return _REFERENCE[key]
+
+
 def draw_params(system, effect, u, rng):
     """Hidden parameters of ``effect`` at strength ``u`` in [0, 1] for ``system``.
 
@@ -76,10 +88,12 @@ def draw_params(system, effect, u, rng):
         rel = rng.choice([-1, 1]) * (_logmix(0.04, 0.4, u) if laser else _logmix(0.01, 0.15, u))
         return {"parameter": key, "start": v0, "end": float(v0 * (1 + rel))}
     if effect == "clipping":
-        level = _logmix(3.5, 1.2, u) if laser else _logmix(2.8, 0.9, u)
+        # strength = fraction of samples clipped on each clipped side
+        frac = _logmix(0.002, 0.08, u)
+        z = _reference_z(system)
         side = "high" if laser else str(rng.choice(["high", "low", "both"]))
-        return {"low": -level if side in ("low", "both") else -np.inf,
-                "high": level if side in ("high", "both") else np.inf}
+        return {"low": float(np.quantile(z, frac)) if side in ("low", "both") else -np.inf,
+                "high": float(np.quantile(z, 1 - frac)) if side in ("high", "both") else np.inf}
     if effect == "outliers":
         return {"rate": _logmix(3e-4, 1e-2, u), "size": float(rng.uniform(3.0, 10.0))}
     if effect == "timebase_mismatch":
@@ -192,7 +206,7 @@ def build_cases(systems, n_cases, n_controls, n_combined, seed):
 def runtime(system, label, n, sample_dt, n_jobs):
     warnings.simplefilter("ignore")
     real = make_real(system, [("periodic_interference",
-                               {"frequency": 0.11, "amplitude": 0.05, "phase": 0.0})],
+                               {"frequency": 0.11, "amplitude": 0.15, "phase": 0.0})],
                      n, 424242, sample_dt)
     t0, c0 = time.perf_counter(), time.process_time()
     rep = diagnose_gap(real, system, sample_dt=sample_dt, random_state=3, n_jobs=n_jobs)

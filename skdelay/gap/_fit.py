@@ -56,14 +56,31 @@ def _transform(effect, key, lo, hi):
     return lo, hi, (lambda v: v), (lambda v: v)
 
 
+#: the search result replaces the signature guess only if it lowers the gap by more than
+#: this (absolute, relative to the guess's gap): on a flat objective the guess is better
+KEEP_GUESS = (0.25, 0.02)
+
+
 def generic_search(effect, problem, guess, objective):
-    """Bounded grid + Brent (1-D) or Nelder-Mead (2-D) search around ``guess``."""
+    """Bounded grid + Brent (1-D) or Nelder-Mead (2-D) search around ``guess``.
+
+    Returns the guess itself when the search cannot beat it clearly (flat,
+    noisy objective): the signature estimate (line amplitude from the DFT,
+    ADC step from the distinct values, ...) is then the better value.
+    """
     space = effect.search_bounds(guess, problem)
     keys = list(space)
     kind = effect.target
+    gap_guess = objective(guess)
     if not keys:
-        objective(guess)
         return guess
+    best = _search(effect, problem, guess, objective, space, keys, kind)
+    if objective.best[0] < gap_guess - max(KEEP_GUESS[0], KEEP_GUESS[1] * gap_guess):
+        return best
+    return guess
+
+
+def _search(effect, problem, guess, objective, space, keys, kind):
     tr = {k: _transform(effect, k, *space[k]) for k in keys}
 
     def params_of(vec):
@@ -80,7 +97,7 @@ def generic_search(effect, problem, guess, objective):
                         tr[k][0], tr[k][1])) for k in keys]
     if len(keys) == 1:
         lo, hi = tr[keys[0]][0], tr[keys[0]][1]
-        grid = np.unique(np.concatenate([np.linspace(lo, hi, GRID[kind]), x0]))
+        grid = np.linspace(lo, hi, GRID[kind])
         values = np.array([f(g) for g in grid])
         i = int(np.argmin(values))
         if np.isfinite(values[i]) and REFINE[kind] > 0:

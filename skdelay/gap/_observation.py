@@ -301,7 +301,7 @@ class Outliers(Effect):
 
     def guess(self, real, sim, sample_dt):
         rate, size = spikes(real, sim)
-        detected = rate * len(real) >= 10
+        detected = rate * len(real) >= 4
         if not detected:
             rate, size = 1e-3, 4.0
         return {"rate": _clamp(rate, self.bounds["rate"]), "size": _clamp(size, self.bounds["size"]),
