@@ -18,7 +18,7 @@ from ._problem import SimulationFailed
 
 #: evaluation budgets (observation effects are cheap, simulation effects are not)
 GRID = {"observation": 7, "simulation": 5}
-REFINE = {"observation": 6, "simulation": 2}
+REFINE = {"observation": 6, "simulation": 3}
 NM_EVALS = {"observation": 25, "simulation": 12}
 
 
@@ -57,8 +57,9 @@ def _transform(effect, key, lo, hi):
 
 
 #: the search result replaces the signature guess only if it lowers the gap by more than
-#: this (absolute, relative to the guess's gap): on a flat objective the guess is better
-KEEP_GUESS = (0.25, 0.02)
+#: this (absolute, relative to the guess's gap): on a flat objective the guess is better.
+#: Simulation effects re-draw their runs at every evaluation, so their objective is noisier.
+KEEP_GUESS = {"observation": (0.25, 0.02), "simulation": (1.0, 0.1)}
 
 
 def generic_search(effect, problem, guess, objective):
@@ -75,7 +76,8 @@ def generic_search(effect, problem, guess, objective):
     if not keys:
         return guess
     best = _search(effect, problem, guess, objective, space, keys, kind)
-    if objective.best[0] < gap_guess - max(KEEP_GUESS[0], KEEP_GUESS[1] * gap_guess):
+    absolute, relative = KEEP_GUESS[kind]
+    if objective.best[0] < gap_guess - max(absolute, relative * gap_guess):
         return best
     return guess
 

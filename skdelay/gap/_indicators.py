@@ -9,9 +9,10 @@ statement.  Bins know their bounds in physical units (frequency in cycles
 per time unit, values in the units of the real data, lags and times in time
 units) for the localisation table.
 
-The ``fast`` indicators (spectrum, histogram, autocorrelation, segment,
-levels) are cheap and drive the parameter searches; the ``full`` ones
-(forecast_error, cross_prediction) are computed once per fitted candidate.
+The ``fast`` indicators (spectrum, histogram, increments, autocorrelation,
+segment, levels) are cheap and drive the parameter searches; the ``full``
+ones (forecast_error, cross_prediction) are computed once per fitted
+candidate.
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ from typing import ClassVar
 import numpy as np
 
 from ._effects import Effect, _fmt, register_effect
-from ._problem import SimulationFailed, run_simulator
+from ._problem import SimulationFailed
 from ._signature import ensemble_psd, welch_psd
 
 
@@ -77,29 +77,50 @@ class DynamicalNoise(Effect):
         est = np.median(sd * 2 * np.pi * f[top] * np.sqrt(excess / 2.0))
         return {"dynamical_noise": float(max(est, 1e-3 * sd))}
 
+    #: noise intensities tried to calibrate the guess (the simulator's own units)
+    ladder = tuple(10.0 ** np.arange(-5.0, 0.5, 1.0))
+
     def initial(self, problem):
-        """Signature guess, calibrated by one trial run (the noise's units are the simulator's)."""
-        n = problem.search_length
-        g = self.guess(problem.real, np.array(problem.base), problem.sample_dt)["dynamical_noise"]
-        f, pr = welch_psd(problem.real, problem.sample_dt)
-        _, ps = ensemble_psd(np.array(problem.base), problem.sample_dt, problem.n_samples)
+        """Calibrate the intensity in the simulator's units: one short run per decade of
+        ``ladder``; the intensity whose run departs from the clean runs (fast indicators)
+        as much as the real data do is the guess (log-interpolated)."""
+        from ._indicators import indicator_gap, zscores
+
+        names = [k for k, ind in problem.indicators.items() if ind.tier == "fast"]
+        target = sum(problem.before.gaps[k] for k in names)
+        n = min(problem.search_length, 6000)
         seed = problem.sim_seeds[0]
-        try:
-            trial = run_simulator(problem.simulator, n, problem.sample_dt, seed,
-                                  {"dynamical_noise": g})
-        except SimulationFailed:
-            return {"dynamical_noise": g}
-        _, pt = welch_psd(trial, problem.sample_dt)
-        top = f >= 0.25 * f[-1]
-        want = np.median(np.maximum(pr[top] - ps[top], 0.0))
-        got = np.median(np.maximum(pt[top] - ps[top], 0.0))
-        if want > 0 and got > 0:
-            g = float(np.clip(g * np.sqrt(want / got), g / 100, g * 100))
-        return {"dynamical_noise": g}
+        k = len(problem.base)
+        levels, gaps = [], []
+        for d in self.ladder:
+            try:
+                feats = problem.run_features({"dynamical_noise": d}, n, seed, names)
+            except SimulationFailed:
+                break  # larger intensities will not work either
+            gap = sum(indicator_gap(zscores(feats[name], problem.before.mean[name],
+                                            problem.base_var[name], k)) for name in names)
+            levels.append(d)
+            gaps.append(gap)
+            if gap > target:
+                break
+        if not levels:
+            return {"dynamical_noise": self.ladder[0]}
+        if gaps[-1] <= target or len(levels) == 1:
+            ladder = float(levels[-1])
+        else:
+            lo, hi = np.log([max(gaps[-2], 1e-3), gaps[-1]]), np.log(max(target, 1e-3))
+            frac = (float(np.clip((hi - lo[0]) / (lo[1] - lo[0]), 0.0, 1.0))
+                    if lo[1] > lo[0] else 1.0)
+            ladder = float(levels[-2] * (levels[-1] / levels[-2]) ** frac)
+        # the 1/f^2 law is more precise when the noise drives the observed variable itself
+        law = self.guess(problem.real, np.array(problem.base), problem.sample_dt)
+        if ladder / 3 <= law["dynamical_noise"] <= ladder * 3:
+            return law
+        return {"dynamical_noise": ladder}
 
     def search_bounds(self, guess, context):
         g = guess["dynamical_noise"]
-        return {"dynamical_noise": (g / 4.0, g * 4.0)}
+        return {"dynamical_noise": (g / 3.0, g * 3.0)}
 
     def overrides(self, params, simulator):
         return {"dynamical_noise": float(params["dynamical_noise"])}
