@@ -168,6 +168,12 @@ def build_parser():
                          "autocorrelation revival, at most 500)")
     an.add_argument("--n-queries", type=_int_at_least(100), default=None, metavar="Q",
                     help="query points per scan cell (default: automatic)")
+    an.add_argument("--neighbors", type=_int_at_least(2), default=None, metavar="K",
+                    help="neighbours of the local linear models (default 4 (2 m + 1))")
+    an.add_argument("--ridge", type=_positive_float, default=1e-3,
+                    help="relative ridge of the local fits (default 1e-3; noisy data: 1e-2..1e-1)")
+    an.add_argument("--flow", action="store_true",
+                    help="the data sample a continuous-time flow: pin one exponent to zero")
     an.add_argument("--quick", action="store_true",
                     help="smaller query sets, runs and spectra (a preview in seconds)")
     an.add_argument("--out", "-o", default="skdelay-out", metavar="DIR",
@@ -265,6 +271,7 @@ def _prepare_analyze(args):
         start = time.perf_counter()
         result = _analysis.analyze_series(
             series.to_numpy(), **options, quick=args.quick, n_jobs=args.n_jobs,
+            n_neighbors=args.neighbors, ridge=args.ridge, flow=args.flow,
             random_state=args.seed,
             verbose=0 if args.quiet else 10, progress=say,
             name=f"{Path(args.file).name}" + (f" [{series.name}]" if args.column else ""),

@@ -300,12 +300,30 @@ class Outliers(Effect):
     description = "outliers (isolated spikes)"
 
     def guess(self, real, sim, sample_dt):
-        rate, size = spikes(real, sim)
+        rate, size, cut = spikes(real, sim, with_threshold=True)
         detected = rate * len(real) >= 4
+        if detected:
+            rate, size = self.unbiased(rate, size, cut)
         if not detected:
             rate, size = 1e-3, 4.0
         return {"rate": _clamp(rate, self.bounds["rate"]), "size": _clamp(size, self.bounds["size"]),
                 "detected": detected}
+
+    @staticmethod
+    def unbiased(rate, median_height, cut):
+        """Rate and size of this effect's spikes from the detected ones.
+
+        Heights are ``size * U(0.5, 1.5)``; only those above the detection
+        threshold ``cut`` are seen.  When ``cut > 0.5 size`` the detected
+        heights are uniform on ``[cut, 1.5 size]`` (median ``(cut + 1.5
+        size) / 2``) and a fraction ``1.5 - cut / size`` of the spikes is seen.
+        """
+        if not (np.isfinite(cut) and cut > 0.5 * median_height):
+            return rate, median_height
+        size = (2.0 * median_height - cut) / 1.5
+        if size <= cut / 1.5 or cut <= 0.5 * size:
+            return rate, median_height
+        return rate / (1.5 - cut / size), size
 
     def search_bounds(self, guess, context):
         r, s = guess["rate"], guess["size"]

@@ -132,24 +132,30 @@ def pile_ups(real, *, min_fraction=5e-4, min_count=5):
     return frac_lo, frac_hi
 
 
-def spikes(real, sims, *, threshold=8.0):
+def spikes(real, sims, *, threshold=1.25, with_threshold=False):
     """``(rate, size)`` of isolated spikes in ``real``; ``size`` is the median spike height
     in units of the std of ``real`` without its spikes.
 
     A sample is a spike when its deviation from the 5-point running median is
-    larger than ``threshold`` times the 99.9th percentile deviation seen in the
-    clean simulations (so the dynamics' own sharp features do not count).
+    larger than ``threshold`` times the largest deviation seen in the clean
+    simulations (so the dynamics' own sharp features do not count) and than
+    half a standard deviation.
+    ``with_threshold=True`` also returns that detection threshold (same units
+    as ``size``): spikes below it are missed, which biases ``rate`` low and
+    ``size`` high.
     """
     x = np.asarray(real, dtype=float)
     med = _running_median(x, 5)
     dev = np.abs(x - med)
     ref = [np.abs(zscore(s) - _running_median(zscore(s), 5)) for s in np.atleast_2d(sims)[:2]]
-    scale = max(float(np.quantile(np.concatenate(ref), 0.999)), 1e-6) * x.std()
-    hits = dev > max(threshold * scale, 0.5 * x.std())
+    scale = max(float(np.max(np.concatenate(ref))), 1e-6) * x.std()
+    cut = max(threshold * scale, 0.5 * x.std())
+    hits = dev > cut
     if not np.any(hits):
-        return 0.0, 0.0
-    clean = np.where(hits, med, x)
-    return float(np.mean(hits)), float(np.median(dev[hits]) / clean.std())
+        return (0.0, 0.0, np.inf) if with_threshold else (0.0, 0.0)
+    clean_std = np.where(hits, med, x).std()
+    out = float(np.mean(hits)), float(np.median(dev[hits]) / clean_std)
+    return (*out, float(cut / clean_std)) if with_threshold else out
 
 
 def white_floor(real, sims, sample_dt, nperseg=1024):

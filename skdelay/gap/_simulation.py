@@ -207,6 +207,9 @@ class ParameterDrift(Effect):
     description = "parameter drift / mismatch"
     #: relative end values tried for every parameter in the coarse scan
     scan = (-0.12, -0.05, -0.02, 0.02, 0.05, 0.12)
+    #: further relative changes tried, outward, while the gap keeps falling at the scan's
+    #: edge (parameters differ in sensitivity: a laser's pump may need a 40 % change)
+    extend = (0.2, 0.3, 0.45, 0.65, 0.9)
     exclude = ("tau",)
     #: with more candidate parameters than this, only the most plausible ones are scanned
     max_scanned = 3
@@ -255,6 +258,17 @@ class ParameterDrift(Effect):
         v0 = _param(problem.simulator, key)
         pts = {r: g for (k, r), g in scanned.items() if k == key}
         grid = sorted(self.scan)
+        if abs(rel) == max(abs(r) for r in self.scan):
+            gap = best[0]
+            for r in (np.sign(rel) * e for e in self.extend):
+                if np.sign(rel) < 0 and r <= -1.0:
+                    break  # a parameter is not driven through zero
+                pts[r] = objective({"parameter": key, "start": v0, "end": v0 * (1 + r)})
+                grid.append(r)
+                if not pts[r] < gap:
+                    break
+                gap, rel = pts[r], r
+            grid = sorted(grid)
         i = grid.index(rel)
         step = 0.5 * min(abs(grid[j] - rel) for j in (i - 1, i + 1) if 0 <= j < len(grid))
         for r in (rel - step, rel + step):
