@@ -525,6 +525,7 @@ def analyze_series(series, *, m=DEFAULT_M, tau_min=1, tau_max=None, sample_dt=1.
     timings["spectra"] = time.perf_counter() - t3
     timings["total"] = time.perf_counter() - t0
     opts["n_run"], opts["n_spectrum_steps"], opts["n_validation"] = n_run, n_spec, n_val
+    opts["n_neighbors"], opts["ridge"], opts["flow"] = n_neighbors, float(ridge), bool(flow)
     return AnalysisResult(
         name=name, sample_dt=dt, series=s, revivals=revivals, forecast_error=curve,
         delays=dips, m=ms[-1], spectra=spectra, validation=table, minimal_m=m_d, runs=runs,

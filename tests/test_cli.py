@@ -92,10 +92,12 @@ def test_analyze_finds_the_delay_and_writes_everything(series_file, tmp_path, ca
     assert_usage_error(code, err, "--force")
     assert "keep.txt" in listing(out)
     # ... and replaced as a whole with it
-    code, _, err = run(["analyze", path, "-c", "1", "--out", out, "--force", *ANALYZE_FAST],
-                       capsys)
+    code, _, err = run(["analyze", path, "-c", "1", "--out", out, "--force", *ANALYZE_FAST,
+                        "--neighbors", "25", "--ridge", "0.05", "--flow"], capsys)
     assert code == 0, err
     assert "keep.txt" not in listing(out) and "report.html" in listing(out)
+    opts = json.loads((out / "results.json").read_text())["options"]
+    assert (opts["n_neighbors"], opts["ridge"], opts["flow"]) == (25, 0.05, True)
     assert listing(tmp_path) == ["report"]
 
 
@@ -143,6 +145,8 @@ def test_analyze_bad_options_exit_2(series_file, tmp_path, capsys):
     for extra, match in ((["--tau-max", "3000"], "needs at least"),
                          (["--tau-min", "10", "--tau-max", "12"], "too short"),
                          (["--dt", "-1"], "positive"),
+                         (["--ridge", "0"], "positive"),
+                         (["--neighbors", "1"], "--neighbors"),
                          (["--m", "0"], "--m")):
         code, _, err = run(["analyze", path, "-c", "signal", "--out", out, *extra], capsys)
         assert_usage_error(code, err, match)

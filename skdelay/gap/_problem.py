@@ -89,7 +89,7 @@ class GapProblem:
         joblib workers for the clean ensemble.
     """
 
-    def __init__(self, real, simulator, *, sample_dt=1.0, n_sims=4, search_sims=2,
+    def __init__(self, real, simulator, *, sample_dt=1.0, n_sims=6, search_sims=2,
                  search_length=10_000, random_state=None, n_jobs=None):
         self.real = real
         self.simulator = simulator
