@@ -304,7 +304,16 @@ class Outliers(Effect):
         detected = rate * len(real) >= 4
         if detected:
             rate, size = self.unbiased(rate, size, cut)
-        if not detected:
+        elif rate == 0:
+            # no sample stands out: only spikes too small to be seen are consistent
+            largest = cut / 1.5
+            if largest < self.bounds["size"][0]:
+                raise ValueError(
+                    f"no isolated spikes in the real data (none is {cut:.2g} std away from "
+                    "its neighbours), so outliers cannot explain the gap."
+                )
+            return {"rate": 1e-3, "size": largest, "detected": False, "unseen": True}
+        else:
             rate, size = 1e-3, 4.0
         return {"rate": _clamp(rate, self.bounds["rate"]), "size": _clamp(size, self.bounds["size"]),
                 "detected": detected}
@@ -327,6 +336,8 @@ class Outliers(Effect):
 
     def search_bounds(self, guess, context):
         r, s = guess["rate"], guess["size"]
+        if guess.get("unseen"):  # spikes below the detection threshold only
+            return {"rate": (1e-5, 0.1), "size": (self.bounds["size"][0], s)}
         if guess.get("detected"):  # counted spikes: keep the count, refine the height
             return {"size": (max(s / 1.3, 1.0), min(s * 1.3, 50.0))}
         return {"rate": (max(r / 3, 1e-5), min(r * 3, 0.1)),

@@ -152,7 +152,7 @@ def spikes(real, sims, *, threshold=1.25, with_threshold=False):
     cut = max(threshold * scale, 0.5 * x.std())
     hits = dev > cut
     if not np.any(hits):
-        return (0.0, 0.0, np.inf) if with_threshold else (0.0, 0.0)
+        return (0.0, 0.0, float(cut / x.std())) if with_threshold else (0.0, 0.0)
     clean_std = np.where(hits, med, x).std()
     out = float(np.mean(hits)), float(np.median(dev[hits]) / clean_std)
     return (*out, float(cut / clean_std)) if with_threshold else out
