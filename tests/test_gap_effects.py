@@ -179,6 +179,25 @@ def test_white_floor_and_spike_guesses():
     assert spikes(x, sims) == (0.0, 0.0)
 
 
+def test_outlier_guess_corrects_for_unseen_spikes_and_needs_spikes():
+    """Spikes below the detection threshold are missed; the guess puts them back."""
+    rng = np.random.default_rng(4)
+    x = smooth_signal() + 0.6 * rng.standard_normal(20000)  # a rough signal: high threshold
+    sims = np.array([smooth_signal(20000, s) + 0.6 * rng.standard_normal(20000) for s in (5, 6)])
+    outliers = get_effect("outliers")
+    spiky = outliers.apply(x, {"rate": 0.004, "size": 4.0}, random_state=3)
+    rate = np.mean(spiky != x)  # the realised rate (0.0048)
+    raw = spikes(spiky, sims, details=True)
+    assert 2.0 < raw["cut"] < 4.0  # part of the heights 2..6 lies below it
+    assert raw["rate"] < 0.7 * rate  # measured: 0.0027, the bias the guess removes
+    g = outliers.guess(spiky, sims, 1.0)
+    assert g["rate"] == pytest.approx(rate, rel=0.15)  # measured: 0.0043
+    assert g["size"] == pytest.approx(4.0, rel=0.1)  # measured: 4.18
+    # no sample stands out of a smooth signal: outliers cannot explain its gap
+    with pytest.raises(ValueError, match="no isolated spikes"):
+        outliers.guess(smooth_signal(), smooth_ensemble(), 1.0)
+
+
 def test_simulation_effects_overrides():
     class Sim:
         params: ClassVar[dict] = {"tau": 17.0, "b": 0.1, "label": "x"}

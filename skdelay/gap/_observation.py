@@ -300,10 +300,11 @@ class Outliers(Effect):
     description = "outliers (isolated spikes)"
 
     def guess(self, real, sim, sample_dt):
-        rate, size, cut = spikes(real, sim, with_threshold=True)
+        found = spikes(real, sim, details=True)
+        rate, size, cut = found["rate"], found["size"], found["cut"]
         detected = rate * len(real) >= 4
         if detected:
-            rate, size = self.unbiased(rate, size, cut)
+            rate, size = self.unbiased(rate, size, cut, found["upper"])
         elif rate == 0:
             # no sample stands out: only spikes too small to be seen are consistent
             largest = cut / 1.5
@@ -319,18 +320,20 @@ class Outliers(Effect):
                 "detected": detected}
 
     @staticmethod
-    def unbiased(rate, median_height, cut):
+    def unbiased(rate, median_height, cut, upper):
         """Rate and size of this effect's spikes from the detected ones.
 
         Heights are ``size * U(0.5, 1.5)``; only those above the detection
         threshold ``cut`` are seen.  When ``cut > 0.5 size`` the detected
-        heights are uniform on ``[cut, 1.5 size]`` (median ``(cut + 1.5
-        size) / 2``) and a fraction ``1.5 - cut / size`` of the spikes is seen.
+        heights are uniform on ``[cut, 1.5 size]``, so their 95th percentile
+        ``upper`` gives ``size`` (the upper end is not smeared by the noise at
+        the threshold, unlike the median) and a fraction ``1.5 - cut / size``
+        of the spikes is seen.
         """
         if not (np.isfinite(cut) and cut > 0.5 * median_height):
             return rate, median_height
-        size = (2.0 * median_height - cut) / 1.5
-        if size <= cut / 1.5 or cut <= 0.5 * size:
+        size = (cut + (upper - cut) / 0.95) / 1.5
+        if not cut / 1.5 < size < 2.0 * cut:
             return rate, median_height
         return rate / (1.5 - cut / size), size
 

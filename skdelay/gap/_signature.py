@@ -132,7 +132,7 @@ def pile_ups(real, *, min_fraction=5e-4, min_count=5):
     return frac_lo, frac_hi
 
 
-def spikes(real, sims, *, threshold=1.25, with_threshold=False):
+def spikes(real, sims, *, threshold=1.25, details=False):
     """``(rate, size)`` of isolated spikes in ``real``; ``size`` is the median spike height
     in units of the std of ``real`` without its spikes.
 
@@ -140,9 +140,10 @@ def spikes(real, sims, *, threshold=1.25, with_threshold=False):
     larger than ``threshold`` times the largest deviation seen in the clean
     simulations (so the dynamics' own sharp features do not count) and than
     half a standard deviation.
-    ``with_threshold=True`` also returns that detection threshold (same units
-    as ``size``): spikes below it are missed, which biases ``rate`` low and
-    ``size`` high.
+    ``details=True`` returns a dict with ``rate``, ``size``, the detection
+    threshold ``cut`` and the 95th percentile ``upper`` of the detected
+    heights (units of ``size``): spikes below ``cut`` are missed, which biases
+    ``rate`` low and ``size`` high.
     """
     x = np.asarray(real, dtype=float)
     med = _running_median(x, 5)
@@ -152,10 +153,13 @@ def spikes(real, sims, *, threshold=1.25, with_threshold=False):
     cut = max(threshold * scale, 0.5 * x.std())
     hits = dev > cut
     if not np.any(hits):
-        return (0.0, 0.0, float(cut / x.std())) if with_threshold else (0.0, 0.0)
+        out = {"rate": 0.0, "size": 0.0, "cut": float(cut / x.std()), "upper": 0.0}
+        return out if details else (0.0, 0.0)
     clean_std = np.where(hits, med, x).std()
-    out = float(np.mean(hits)), float(np.median(dev[hits]) / clean_std)
-    return (*out, float(cut / clean_std)) if with_threshold else out
+    out = {"rate": float(np.mean(hits)), "size": float(np.median(dev[hits]) / clean_std),
+           "cut": float(cut / clean_std),
+           "upper": float(np.quantile(dev[hits], 0.95) / clean_std)}
+    return out if details else (out["rate"], out["size"])
 
 
 def white_floor(real, sims, sample_dt, nperseg=1024):
