@@ -306,6 +306,16 @@ def main(argv=None):
         print(f"combined: first effect one of the two {np.mean(first):.0%}, both found "
               f"{np.mean(both):.0%}")
     print(f"median seconds per diagnosis: {df.seconds.median():.1f}")
+    if df.system.nunique() > 1:
+        print("\n-- per system --")
+        for label, part in single.groupby("system"):
+            mod = part[part.strength == "moderate"]
+            strong = part[part.strength != "weak"]
+            ctrl = df[(df.system == label) & (df.true == "None")]
+            print(f"{label}: moderate {mod.hit.mean():.0%} ({mod.hit.sum()}/{len(mod)}), "
+                  f"moderate+strong {strong.hit.mean():.0%}, parameters within tolerance "
+                  f"{strong[strong.hit].recovered.mean():.0%}, controls None "
+                  f"{(ctrl.found == 'None').mean():.0%} ({(ctrl.found == 'None').sum()}/{len(ctrl)})")
 
 
 if __name__ == "__main__":
