@@ -17,6 +17,7 @@ import numpy as np
 from numba import njit
 
 from ._kdtree import build_tree, query_knn
+from ._neighbours import RADIUS_CAP, Standardiser, fit_neighbourhood
 
 ESCAPE_REASONS = {
     1: "the state left the support of the data (nearest database vector too far)",
@@ -58,69 +59,6 @@ class Trajectory(np.ndarray):
 
 
 @njit(cache=True)
-def local_affine_one(nb_x, nb_y, n_used, v, ridge, order):
-    """One local fit, the compiled twin of :func:`skdelay._local_linear.local_affine`.
-
-    Uses the first ``n_used`` rows of ``nb_x``/``nb_y`` with equal weights:
-    centred normal equations, ridge ``max(ridge, 1e-12) * trace(G) / p``
-    (``1`` if the neighbourhood is a single point), Cholesky solve; returns
-    the prediction ``ybar + a . (v - mean)``.
-    """
-    p = v.size
-    mu = np.zeros(p)
-    ybar = 0.0
-    for j in range(n_used):
-        ybar += nb_y[j]
-        for f in range(p):
-            mu[f] += nb_x[j, f]
-    ybar /= n_used
-    for f in range(p):
-        mu[f] /= n_used
-    if order == 0:
-        return ybar
-    g = np.zeros((p, p))
-    rhs = np.zeros(p)
-    dv = np.empty(p)
-    for j in range(n_used):
-        dy = nb_y[j] - ybar
-        for f in range(p):
-            dv[f] = nb_x[j, f] - mu[f]
-        for f in range(p):
-            rhs[f] += dv[f] * dy
-            for h in range(f + 1):
-                g[f, h] += dv[f] * dv[h]
-    scale = 0.0
-    for f in range(p):
-        scale += g[f, f]
-    scale /= p
-    lam = max(ridge, 1e-12) * scale if scale > 0 else 1.0
-    for f in range(p):  # Cholesky of the lower triangle, in place
-        g[f, f] += lam
-        for h in range(f + 1):
-            acc = g[f, h]
-            for c in range(h):
-                acc -= g[f, c] * g[h, c]
-            if h == f:
-                g[f, f] = np.sqrt(acc)
-            else:
-                g[f, h] = acc / g[h, h]
-    for f in range(p):  # forward, then backward substitution
-        acc = rhs[f]
-        for c in range(f):
-            acc -= g[f, c] * rhs[c]
-        rhs[f] = acc / g[f, f]
-    for f in range(p - 1, -1, -1):
-        acc = rhs[f]
-        for c in range(f + 1, p):
-            acc -= g[c, f] * rhs[c]
-        rhs[f] = acc / g[f, f]
-    pred = ybar
-    for f in range(p):
-        pred += rhs[f] * (v[f] - mu[f])
-    return pred
-
-
-@njit(cache=True)
 def _run(buf, n_hist, n_steps, lags, data, targets, tree, k, k_query, radius2, ridge, order,
          kicks, lo, hi, max_d2):
     """Fill ``buf[n_hist:n_hist+n_steps]``; return ``(n_done, reason_code)``.
@@ -135,6 +73,11 @@ def _run(buf, n_hist, n_steps, lags, data, targets, tree, k, k_query, radius2, r
     stack = np.empty(256, dtype=np.int64)
     nb_x = np.empty((k_query, nf))
     nb_y = np.empty(k_query)
+    nb_w = np.zeros(k_query)
+    mu = np.empty(nf)
+    g = np.empty((nf, nf))
+    rhs = np.empty(nf)
+    grad = np.empty(nf)
     for t in range(n_steps):
         pos = n_hist + t
         for f in range(nf):
@@ -142,16 +85,17 @@ def _run(buf, n_hist, n_steps, lags, data, targets, tree, k, k_query, radius2, r
         query_knn(data, tree, v, k_query, best_d, best_i, stack)
         if best_d[0] > max_d2:
             return t, 1
-        n_used = 0
         for j in range(k_query):
             if j >= k and best_d[j] > radius2:
-                break
+                nb_w[j] = 0.0
+                continue
             row = best_i[j]
+            nb_w[j] = 1.0
             nb_y[j] = targets[row]
             for f in range(nf):
                 nb_x[j, f] = data[row, f]
-            n_used += 1
-        y = local_affine_one(nb_x, nb_y, n_used, v, ridge, order) + kicks[t]
+        _, y = fit_neighbourhood(nb_x, nb_y, nb_w, v, ridge, order, 0.0, mu, g, rhs, grad)
+        y += kicks[t]
         if not np.isfinite(y):
             return t, 2
         if y < lo or y > hi:
@@ -170,7 +114,9 @@ class SupportGuard:
     """
 
     def __init__(self, data, targets, *, distance_factor=5.0, range_margin=0.25,
-                 n_probe=2000, random_state=0):
+                 n_probe=2000, random_state=0, scaler=None):
+        # data and targets in rescaled units; ``scaler`` maps series values to them
+        self.scaler = Standardiser() if scaler is None else scaler
         self.data = np.ascontiguousarray(data, dtype=np.float64)
         self.targets = np.ascontiguousarray(targets, dtype=np.float64)
         self.tree = build_tree(self.data)
@@ -205,19 +151,21 @@ def run_model(guard, history, n_steps, lags, *, k, radius, ridge, order, kicks, 
 
     ``k``, ``radius``, ``ridge``, ``order`` as in the fitted
     :class:`~skdelay.LocalLinearDelayMap` (radius neighbourhoods hold at most
-    ``10 k`` points, as there).
+    ``RADIUS_CAP * k`` points, as there); ``history``, ``radius`` and the
+    ``kicks`` in data units (the loop runs on rescaled values).
     """
     n_hist = history.size
     buf = np.empty(n_hist + n_steps)
-    buf[:n_hist] = history
+    buf[:n_hist] = guard.scaler.forward(history)
     n_db = guard.data.shape[0]
     k = min(int(k), n_db)
-    k_query = k if radius is None else min(10 * k, n_db)
-    radius2 = np.inf if radius is None else float(radius) ** 2
+    k_query = k if radius is None else min(RADIUS_CAP * k, n_db)
+    radius2 = np.inf if radius is None else (float(radius) / guard.scaler.scale) ** 2
+    kicks = np.asarray(kicks, dtype=np.float64) / guard.scaler.scale
     n_done, code = _run(buf, n_hist, n_steps, np.asarray(lags, dtype=np.int64), guard.data,
                         guard.targets, guard.tree, k, k_query, radius2, float(ridge), int(order),
                         kicks, guard.lo, guard.hi, guard.max_distance ** 2)
-    out = buf[n_hist:n_hist + n_done].copy()
+    out = guard.scaler.inverse(buf[n_hist:n_hist + n_done])
     if code == 0:
         return Trajectory(out)
     reason = ESCAPE_REASONS[code]

@@ -1,10 +1,10 @@
-"""Local linear (Farmer-Sidorowich) regression with batched neighbourhood fits.
+"""Local linear (Farmer-Sidorowich) regression: the scikit-learn estimator.
 
-Every query point gets its own affine map ``y = b + a . v`` fitted by
-least squares on its neighbourhood.  All fits of a chunk of queries are done
-at once: neighbours are gathered into a (chunk, k, p) array, centred, and the
-(chunk, p, p) stacked normal equations are solved by one ``np.linalg.solve``
-call -- there is no Python loop over points.
+A thin estimator over :mod:`skdelay._neighbours` (k-d tree queries, Theiler
+exclusion, centred moments and the ridge solve live there, shared with the
+delay scan and the compiled free-run loop).  Vectors and targets are
+rescaled internally (:class:`~skdelay._neighbours.Standardiser`), so the
+fitted maps and forecasts do not depend on the data's units or scale.
 """
 
 from __future__ import annotations
@@ -12,154 +12,17 @@ from __future__ import annotations
 import numbers
 
 import numpy as np
-from numba import njit
 from scipy.spatial import cKDTree
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from ._neighbours import RADIUS_CAP, Standardiser, chunk_slices, fit_gathered, tree_neighbours
+
 __all__ = ["LocalLinearDelayMap"]
 
-_RADIUS_CAP = 10  # radius neighbourhoods hold at most this many times n_neighbors points
-_CHUNK_VALUES = 1 << 21  # size of the (chunk, k, p) gather that one batch may hold
-
-
-@njit(cache=True)
-def _centred_moments(Vn, yn, w):
-    """Weighted means and centred normal equations of every neighbourhood (one pass)."""
-    n, k, p = Vn.shape
-    mu = np.zeros((n, p))
-    ybar = np.zeros(n)
-    G = np.zeros((n, p, p))
-    rhs = np.zeros((n, p))
-    wsum = np.zeros(n)
-    d = np.empty(p)
-    for i in range(n):
-        ws = 0.0
-        for j in range(k):
-            wj = w[i, j]
-            if wj != 0.0:
-                ws += wj
-                ybar[i] += wj * yn[i, j]
-                for a in range(p):
-                    mu[i, a] += wj * Vn[i, j, a]
-        wsum[i] = ws
-        if ws == 0.0:
-            continue
-        ybar[i] /= ws
-        for a in range(p):
-            mu[i, a] /= ws
-        for j in range(k):
-            wj = w[i, j]
-            if wj == 0.0:
-                continue
-            dy = wj * (yn[i, j] - ybar[i])
-            for a in range(p):
-                d[a] = Vn[i, j, a] - mu[i, a]
-            for a in range(p):
-                rhs[i, a] += d[a] * dy
-                wa = wj * d[a]
-                for b in range(a + 1):
-                    G[i, a, b] += wa * d[b]
-        for a in range(p):
-            for b in range(a):
-                G[i, b, a] = G[i, a, b]
-    return mu, ybar, G, rhs, wsum
-
-
-def local_affine(Vq, Vn, yn, weight, *, order=1, ridge=1e-3, fallback=0.0):
-    """Fit one affine map per query on its neighbourhood (batched).
-
-    Parameters
-    ----------
-    Vq : ndarray (n, p)
-        Query vectors.
-    Vn : ndarray (n, k, p)
-        Neighbour vectors of each query.
-    yn : ndarray (n, k)
-        Neighbour targets.
-    weight : ndarray (n, k) of bool or float
-        Neighbour weights (0 = unused slot).
-    order : {0, 1}
-        0 = neighbourhood mean, 1 = local linear.
-    ridge : float
-        Ridge on the centred normal equations, relative to their mean
-        eigenvalue ``trace(G) / p`` (scale free); a tiny floor keeps
-        degenerate neighbourhoods solvable.
-    fallback : float
-        Prediction for queries without any neighbour.
-
-    Returns
-    -------
-    A : ndarray (n, p)
-    b : ndarray (n,)
-    pred : ndarray (n,)
-        ``b + A . Vq`` evaluated in the centred, better conditioned form.
-    """
-    moments = _centred_moments(np.ascontiguousarray(Vn, dtype=np.float64),
-                               np.ascontiguousarray(yn, dtype=np.float64),
-                               np.ascontiguousarray(weight, dtype=np.float64))
-    return solve_moments(Vq, *moments, order=order, ridge=ridge, fallback=fallback)
-
-
-def solve_moments(Vq, mu, ybar, G, rhs, wsum, *, order=1, ridge=1e-3, fallback=0.0):
-    """Affine maps from centred neighbourhood moments (see :func:`local_affine`).
-
-    Solves the stacked, ridge-regularised normal equations ``G a = rhs`` of a
-    whole batch with one ``np.linalg.solve`` call; modifies ``G`` and ``ybar``.
-    """
-    n, p = mu.shape
-    empty = wsum == 0
-    ybar[empty] = fallback
-    A = np.zeros((n, p))
-    if order == 0 or p == 0:
-        return A, ybar, ybar.copy()
-    scale = np.trace(G, axis1=1, axis2=2) / p
-    lam = max(float(ridge), 1e-12) * scale
-    lam[~(scale > 0)] = 1.0  # all neighbours coincide: rhs is 0, so a = 0
-    diag = np.arange(p)
-    G[:, diag, diag] += lam[:, None]
-    A = np.linalg.solve(G, rhs[..., None])[..., 0]
-    A[empty] = 0.0
-    b = ybar - np.einsum("np,np->n", A, mu)
-    pred = ybar + np.einsum("np,np->n", A, Vq - mu)
-    return A, b, pred
-
-
-def tree_neighbours(tree, Xq, n_neighbors, *, radius=None, query_ids=None, fit_ids=None,
-                    theiler_window=0, workers=1):
-    """Neighbour positions and weights for a chunk of queries.
-
-    k-NN, or all points within ``radius`` (at most ``_RADIUS_CAP * k`` of the
-    nearest) with a k-NN fallback when fewer than ``k`` lie inside.  With
-    ``query_ids``, points whose id (``fit_ids``, default: tree position) lies
-    within ``theiler_window`` of the query's id are excluded.
-
-    Returns
-    -------
-    pos : ndarray (n, kk) of int
-        Positions in the tree's data.
-    weight : ndarray (n, kk) of bool
-        Which slots are used.
-    """
-    n_fit = tree.n
-    k = min(int(n_neighbors), n_fit)
-    excl = 0 if query_ids is None else 2 * int(theiler_window) + 1
-    kq = min(n_fit, (k if radius is None else _RADIUS_CAP * k) + excl)
-    dist, pos = tree.query(Xq, k=kq, workers=workers)
-    dist = dist.reshape(len(Xq), kq)
-    pos = pos.reshape(len(Xq), kq)
-    valid = np.ones(pos.shape, dtype=bool)
-    if query_ids is not None:
-        ids = pos if fit_ids is None else fit_ids[pos]
-        valid = np.abs(ids - np.asarray(query_ids)[:, None]) > theiler_window
-    if radius is None:
-        keep = np.argsort(~valid, axis=1, kind="stable")[:, :k]
-        return np.take_along_axis(pos, keep, 1), np.take_along_axis(valid, keep, 1)
-    rank = np.cumsum(valid, axis=1)
-    weight = valid & ((dist <= radius) | (rank <= k))
-    used = np.flatnonzero(weight.any(axis=0))
-    last = used[-1] + 1 if used.size else 1
-    return pos[:, :last], weight[:, :last]
+#: Relative spread below which the training vectors differ only by rounding: neighbour
+#: distances are then ties decided by the last bits, so no neighbourhood means anything.
+MIN_RELATIVE_SPREAD = 1e-12
 
 
 def _check_params(est):
@@ -220,6 +83,9 @@ class LocalLinearDelayMap(RegressorMixin, BaseEstimator):
         Training vectors (the neighbour database).
     fit_y_ : ndarray of shape (n_rows,)
         Training targets.
+    x_scaler_, y_scaler_ : Standardiser
+        Power-of-two rescaling of the vectors and of the targets; the fits run
+        on rescaled values, so results do not depend on the data's scale.
 
     See Also
     --------
@@ -266,11 +132,34 @@ class LocalLinearDelayMap(RegressorMixin, BaseEstimator):
         """
         _check_params(self)
         X, y = validate_data(self, X, y, y_numeric=True, dtype=np.float64)
+        y = np.asarray(y, dtype=np.float64)
+        if self.n_jobs is not None and (not isinstance(self.n_jobs, numbers.Integral)
+                                        or self.n_jobs == 0):
+            raise ValueError(f"n_jobs must be None, -1 or a positive integer, got "
+                             f"{self.n_jobs!r}.")
         self.fit_X_ = X
-        self.fit_y_ = np.asarray(y, dtype=np.float64)
-        self._tree = cKDTree(X)
-        self._y_mean = float(self.fit_y_.mean())
+        self.fit_y_ = y
+        self.x_scaler_ = Standardiser.fit(X)
+        self.y_scaler_ = Standardiser.fit(y)
+        if 0 < self.x_scaler_.relative_spread < MIN_RELATIVE_SPREAD:
+            raise ValueError(
+                "the training vectors differ only in their last bits (relative spread "
+                f"{self.x_scaler_.relative_spread:.1e}): neighbours cannot be told apart. "
+                "Remove the offset (subtract the mean) before fitting."
+            )
+        self._Xs = np.ascontiguousarray(self.x_scaler_.forward(X))
+        self._ys = self.y_scaler_.forward(y)
+        self._tree = cKDTree(self._Xs)
         return self
+
+    def database(self):
+        """The neighbour database in rescaled units: ``(vectors, targets)``.
+
+        Both in the units of the rescaled *vectors* (``x_scaler_``), so a
+        delay map can be iterated on rescaled values of one series.
+        """
+        check_is_fitted(self)
+        return self._Xs, np.ascontiguousarray(self.x_scaler_.forward(self.fit_y_))
 
     def _maps(self, X, query_index):
         check_is_fitted(self)
@@ -285,21 +174,23 @@ class LocalLinearDelayMap(RegressorMixin, BaseEstimator):
                     f"row in the training data, got shape {query_index.shape} and dtype "
                     f"{query_index.dtype}."
                 )
-        k_cap = min(self.n_neighbors * (_RADIUS_CAP if self.radius else 1), self._tree.n)
-        chunk = max(1, _CHUNK_VALUES // max(1, k_cap * max(p, 1)))
+        sx, sy = self.x_scaler_, self.y_scaler_
+        Xs = sx.forward(X)
+        radius = None if self.radius is None else self.radius / sx.scale
+        k_cap = min(self.n_neighbors * (RADIUS_CAP if self.radius else 1), self._tree.n)
         A = np.empty((n, p))
         b = np.empty(n)
         pred = np.empty(n)
-        for lo in range(0, n, chunk):
-            sl = slice(lo, min(n, lo + chunk))
+        for sl in chunk_slices(n, k_cap * max(p, 1)):
             pos, weight = tree_neighbours(
-                self._tree, X[sl], self.n_neighbors, radius=self.radius,
+                self._tree, Xs[sl], self.n_neighbors, radius=radius,
                 query_ids=None if query_index is None else query_index[sl],
                 theiler_window=self.theiler_window, workers=_workers(self.n_jobs))
-            A[sl], b[sl], pred[sl] = local_affine(
-                X[sl], self.fit_X_[pos], self.fit_y_[pos], weight, order=self.order,
-                ridge=self.ridge, fallback=self._y_mean)
-        return A, b, pred
+            A[sl], b[sl], pred[sl] = fit_gathered(
+                Xs[sl], self._Xs[pos], self._ys[pos], weight.astype(np.float64),
+                float(self.ridge), int(self.order), 0.0)
+        # back to the original units (exact: both scales are powers of two)
+        return A * (sy.scale / sx.scale), sy.inverse(b), sy.inverse(pred)
 
     def predict(self, X, *, query_index=None):
         """One-step forecasts ``b_i + a_i . v_i``.

@@ -105,8 +105,13 @@ def support_guard(reg, *, distance_factor, range_margin):
         cached = None
     if cached is not None and cached[0] == key:
         return cached[1]
-    guard = SupportGuard(reg.fit_X_, reg.fit_y_, distance_factor=distance_factor,
-                         range_margin=range_margin)
+    if hasattr(reg, "database"):
+        data, targets = reg.database()
+        scaler = reg.x_scaler_
+    else:  # a duck-typed local map without standardisation
+        data, targets, scaler = reg.fit_X_, reg.fit_y_, None
+    guard = SupportGuard(data, targets, distance_factor=distance_factor,
+                         range_margin=range_margin, scaler=scaler)
     try:
         _GUARDS[reg] = (key, guard)
     except TypeError:

@@ -48,12 +48,8 @@ from skdelay._embedding import (
     required_lags,
     two_window_columns,
 )
-from skdelay._local_linear import (
-    _CHUNK_VALUES,
-    LocalLinearDelayMap,
-    solve_moments,
-    tree_neighbours,
-)
+from skdelay._local_linear import LocalLinearDelayMap
+from skdelay._neighbours import RADIUS_CAP, chunk_slices, fit_from_series, tree_neighbours
 from skdelay._windows import series_from_lagged
 
 __all__ = ["DelaySelectorCV", "forecast_error_curve", "locate_dips"]
@@ -190,70 +186,17 @@ def _union_rerank(s, q_t, lists, ldist, rk2, row_of, u_min, start, m, k, radius2
             weight[i, c] = False
 
 
-@njit(cache=True)
-def _series_moments(s, q_t, nb_t, weight, cols):
-    """Centred neighbourhood moments read straight from the series.
-
-    Same as ``_centred_moments`` for ``Vn = s[nb_t[..., None] - cols]`` and
-    ``yn = s[nb_t + 1]``, without building those arrays; also returns ``Vq``.
-    """
-    n, k = nb_t.shape
-    p = cols.size
-    Vq = np.empty((n, p))
-    mu = np.zeros((n, p))
-    ybar = np.zeros(n)
-    G = np.zeros((n, p, p))
-    rhs = np.zeros((n, p))
-    wsum = np.zeros(n)
-    v = np.empty((k, p))
-    for i in range(n):
-        for a in range(p):
-            Vq[i, a] = s[q_t[i] - cols[a]]
-        ws = 0.0
-        for j in range(k):
-            if not weight[i, j]:
-                continue
-            t = nb_t[i, j]
-            ws += 1.0
-            ybar[i] += s[t + 1]
-            for a in range(p):
-                v[j, a] = s[t - cols[a]]
-                mu[i, a] += v[j, a]
-        wsum[i] = ws
-        if ws == 0.0:
-            continue
-        ybar[i] /= ws
-        for a in range(p):
-            mu[i, a] /= ws
-        for j in range(k):
-            if not weight[i, j]:
-                continue
-            dy = s[nb_t[i, j] + 1] - ybar[i]
-            for a in range(p):
-                da = v[j, a] - mu[i, a]
-                rhs[i, a] += da * dy
-                for b in range(a + 1):
-                    G[i, a, b] += da * (v[j, b] - mu[i, b])
-        for a in range(p):
-            for b in range(a):
-                G[i, b, a] = G[i, a, b]
-    return Vq, mu, ybar, G, rhs, wsum
-
-
 def _gather(s, t, cols):
     return s[t[..., None] - cols]
 
 
 def _fit_errors(s, q_t, nb_t, weight, cols, order, ridge, fallback):
     """Squared one-step errors of the local fits for queries q_t with neighbours nb_t."""
-    Vq, *moments = _series_moments(s, q_t, nb_t, weight, cols)
-    _, _, pred = solve_moments(Vq, *moments, order=order, ridge=ridge, fallback=fallback)
+    pred = fit_from_series(s, q_t, nb_t, weight, cols, float(ridge), int(order), fallback)
     return (pred - s[q_t + 1]) ** 2
 
 
-def _chunks(n, per_row):
-    step = max(1, _CHUNK_VALUES // max(1, per_row))
-    return [slice(lo, min(n, lo + step)) for lo in range(0, n, step)]
+_chunks = chunk_slices
 
 
 def _errors_exact(s, m, taus, db_t, q_t, *, k, order, ridge, radius, theiler, workers):
@@ -264,7 +207,7 @@ def _errors_exact(s, m, taus, db_t, q_t, *, k, order, ridge, radius, theiler, wo
         cols = two_window_columns(m, tau)
         tree = cKDTree(_gather(s, db_t, cols))
         Vq = _gather(s, q_t, cols)
-        kk = k * (10 if radius else 1)
+        kk = k * (RADIUS_CAP if radius else 1)
         for sl in _chunks(q_t.size, kk * 2 * m):
             pos, weight = tree_neighbours(
                 tree, Vq[sl], k, radius=radius,

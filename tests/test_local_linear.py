@@ -2,7 +2,8 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from skdelay._local_linear import LocalLinearDelayMap, local_affine, tree_neighbours
+from skdelay._local_linear import LocalLinearDelayMap
+from skdelay._neighbours import fit_from_series, fit_gathered, tree_neighbours
 
 
 @pytest.fixture
@@ -114,8 +115,8 @@ def test_degenerate_neighbourhoods_do_not_crash():
 
 def test_local_affine_empty_neighbourhood_uses_fallback():
     Vn = np.zeros((2, 3, 2))
-    A, _, pred = local_affine(np.zeros((2, 2)), Vn, np.ones((2, 3)),
-                              np.array([[0, 0, 0], [1, 1, 0]], bool), fallback=7.0)
+    A, _, pred = fit_gathered(np.zeros((2, 2)), Vn, np.ones((2, 3)),
+                              np.array([[0, 0, 0], [1, 1, 0]], float), 1e-3, 1, 7.0)
     np.testing.assert_allclose(pred, [7.0, 1.0])
     assert np.all(A == 0)
 
@@ -125,9 +126,9 @@ def test_n_jobs_and_chunking_do_not_change_results(smooth_data, monkeypatch):
     ref = LocalLinearDelayMap(n_neighbors=9).fit(V, y).predict(V, query_index=np.arange(800))
     par = LocalLinearDelayMap(n_neighbors=9, n_jobs=2).fit(V, y)
     np.testing.assert_allclose(par.predict(V, query_index=np.arange(800)), ref, rtol=1e-12)
-    import skdelay._local_linear as mod
+    import skdelay._neighbours as mod
 
-    monkeypatch.setattr(mod, "_CHUNK_VALUES", 50)
+    monkeypatch.setattr(mod, "CHUNK_VALUES", 50)
     np.testing.assert_allclose(par.predict(V, query_index=np.arange(800)), ref, rtol=1e-12)
 
 
@@ -148,3 +149,45 @@ def test_bad_query_index(smooth_data):
         model.predict(V[:3], query_index=[0, 1])
     with pytest.raises(ValueError, match="query_index"):
         model.predict(V[:2], query_index=[0.5, 1.0])
+
+
+def test_one_fit_for_estimator_and_series_kernel():
+    """The estimator and the scan's series kernel fit the same neighbourhoods identically."""
+    rng = np.random.default_rng(5)
+    s = np.cumsum(rng.normal(size=3000)) * 0.1 + np.sin(np.arange(3000) / 7.0)
+    cols = np.array([0, 1, 9, 10])
+    t = np.arange(20, 2990)
+    V, y = s[t[:, None] - cols], s[t + 1]
+    q = np.arange(100, 2900, 37)
+    pos, weight = tree_neighbours(cKDTree(V), V[q], 15, query_ids=q, theiler_window=3)
+    pred_series = fit_from_series(s, t[q], t[pos], weight, cols, 1e-3, 1, 0.0)
+    A, b, pred = fit_gathered(V[q], V[pos], y[pos], weight.astype(float), 1e-3, 1, 0.0)
+    np.testing.assert_allclose(pred_series, pred, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(b + (A * V[q]).sum(1), pred, rtol=1e-9, atol=1e-10)
+    model = LocalLinearDelayMap(n_neighbors=15, theiler_window=3).fit(V, y)
+    np.testing.assert_allclose(model.predict(V[q], query_index=q), pred, rtol=1e-8, atol=1e-9)
+
+
+@pytest.mark.parametrize("scale", [1e-300, 1e-160, 1e160, 1e300])
+def test_results_do_not_depend_on_scale(smooth_data, scale):
+    V, y = smooth_data
+    ref = LocalLinearDelayMap(n_neighbors=12).fit(V, y)
+    big = LocalLinearDelayMap(n_neighbors=12).fit(V * scale, y * scale)
+    np.testing.assert_allclose(big.predict(V[:50] * scale) / scale, ref.predict(V[:50]),
+                               rtol=1e-9, atol=1e-12)
+    A0, b0 = ref.local_maps(V[:5])
+    A1, b1 = big.local_maps(V[:5] * scale)
+    np.testing.assert_allclose(A1, A0, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(b1 / scale, b0, rtol=1e-9, atol=1e-12)
+
+
+def test_offset_beyond_resolution_is_refused():
+    V = 1e17 + np.arange(40.0).reshape(20, 2)  # distinct only in the last bits
+    with pytest.raises(ValueError, match="last bits"):
+        LocalLinearDelayMap(n_neighbors=5).fit(V, np.arange(20.0))
+
+
+def test_n_jobs_zero_is_refused_at_fit(smooth_data):
+    V, y = smooth_data
+    with pytest.raises(ValueError, match="n_jobs"):
+        LocalLinearDelayMap(n_jobs=0).fit(V, y)
