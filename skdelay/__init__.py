@@ -34,10 +34,11 @@ import importlib
 
 from ._analysis import AnalysisResult, analyze_series
 from ._correlation import autocorrelation, mutual_information, revival_peak
+from ._dips import locate_dips
 from ._embedding import TwoWindowEmbedding, required_lags, two_window_columns
 from ._io import read_series
 from ._local_linear import LocalLinearDelayMap
-from ._selection import DelaySelectorCV, forecast_error_curve, locate_dips
+from ._selection import DelaySelectorCV, forecast_error_curve
 from ._spectrum import LyapunovSpectrum
 from ._windows import lagged_windows
 

@@ -42,6 +42,7 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 
 from skdelay._checks import check_positive_int, check_random_state, check_series
 from skdelay._correlation import autocorrelation
+from skdelay._dips import locate_dips
 from skdelay._embedding import (
     TwoWindowEmbedding,
     _second_window_start,
@@ -397,94 +398,6 @@ def scan_series(s, ms, taus, splits, *, k, order, ridge, radius, theiler, n_quer
         exact[split, m_pos[m], cols] = x
     meta["exact_fraction"] = exact
     return err, meta
-
-
-def locate_dips(forecast_error, *, level=1 / 3):
-    """Delay (dip centre) and half-width of the forecast-error dip of every column.
-
-    The dip of a curve ``sigma(tau)`` is the contiguous run of ``tau`` around
-    its minimum where ``sigma <= L = min + level * (median - min)`` (the
-    median of the scanned curve is the baseline, so scan well beyond the dip;
-    crossings are linearly interpolated between grid points).
-
-    * **centre**: the depth-weighted centroid ``sum tau (L - sigma) / sum (L -
-      sigma)`` over the run.  A delay dip is lopsided -- a gentle flank on the
-      short-``tau`` side (newer samples still interpolate the delayed pair),
-      a cliff on the long side -- so the run is taken in the lower third of
-      the dip and weighted towards its bottom, where the plateau of windows
-      holding the delayed pair lies.  For odd ``m >= 3`` that plateau is
-      centred half a sample after the delay (the second window has one more
-      newer sample, see :class:`TwoWindowEmbedding`), so ``1/2`` is
-      subtracted; the column label must then be the int ``m``.
-    * **half-width**: half the run's width, at least 0.5 sample -- the error
-      bar of the paper's delay table.
-
-    On Mackey-Glass data (0.5 % noise, 12 bits, 10^4 samples, delays 17-100,
-    m = 2..5) the centre lies within -0.8..+0.8 samples of the true delay.
-
-    Parameters
-    ----------
-    forecast_error : pandas.DataFrame
-        Index ``tau``, one column per ``m`` (as from :func:`forecast_error_curve`).
-    level : float, default=1/3
-        Fraction of the dip depth (0 < level <= 1) that delimits the dip.
-
-    Returns
-    -------
-    pandas.DataFrame
-        Index ``m``; columns ``delay`` (centre), ``half_width``, ``tau_min``
-        (grid minimum) and ``min_error``.
-
-    Examples
-    --------
-    >>> import pandas as pd
-    >>> curve = pd.DataFrame({2: [9.0, 8, 7, 4, 2, 3, 9, 9, 9]},
-    ...                      index=pd.Index(range(10, 19), name="tau"))
-    >>> row = locate_dips(curve, level=0.5).loc[2]
-    >>> round(float(row["delay"]), 2), round(float(row["half_width"]), 2), int(row["tau_min"])
-    (14.17, 1.33, 14)
-    """
-    if not 0 < level <= 1:
-        raise ValueError(f"level must lie in (0, 1], got {level!r}.")
-    taus = np.asarray(forecast_error.index, dtype=np.float64)
-    rows = {}
-    for m in forecast_error.columns:
-        c = np.asarray(forecast_error[m], dtype=np.float64)
-        centre, half, tau_min, lo = _dip(taus, c, level)
-        if isinstance(m, numbers.Integral) and m >= 3 and m % 2:
-            centre -= 0.5
-        rows[m] = (centre, half, tau_min, lo)
-    out = pd.DataFrame.from_dict(rows, orient="index",
-                                 columns=["delay", "half_width", "tau_min", "min_error"])
-    out.index.name = "m"
-    out["tau_min"] = out["tau_min"].astype(int)
-    return out
-
-
-def _dip(taus, c, level):
-    i0 = int(np.argmin(c))
-    lo = c[i0]
-    lev = lo + level * (np.median(c) - lo)
-    left = i0
-    while left > 0 and c[left - 1] <= lev:
-        left -= 1
-    right = i0
-    while right < c.size - 1 and c[right + 1] <= lev:
-        right += 1
-
-    def cross(a, b):  # crossing of the level between grid points a (inside) and b (outside)
-        if c[b] == c[a]:
-            return taus[a]
-        return taus[a] + (lev - c[a]) / (c[b] - c[a]) * (taus[b] - taus[a])
-
-    t_left = taus[left] if left == 0 else cross(left, left - 1)
-    t_right = taus[right] if right == c.size - 1 else cross(right, right + 1)
-    depth = lev - c[left:right + 1]
-    if depth.sum() > 0:
-        centre = float(np.sum(taus[left:right + 1] * depth) / depth.sum())
-    else:
-        centre = float(taus[i0])
-    return centre, max(0.5 * (t_right - t_left), 0.5), int(taus[i0]), float(lo)
 
 
 def forecast_error_curve(series, m=(2, 3, 4, 5), tau=range(1, 101), *, n_neighbors=30, order=1,

@@ -1,0 +1,269 @@
+"""The forecast-error dip: where it is, how wide, and whether it is there at all.
+
+One locator for every caller (the delay scan, :class:`~skdelay.DelaySelectorCV`,
+the analysis, the faithful-model search and the gap diagnosis):
+
+* **centre** -- the depth-weighted centroid of the contiguous run of delays
+  around the minimum where ``sigma <= L = min + level * (baseline - min)``,
+  ``baseline`` the median of the scanned curve (crossings interpolated
+  linearly).  A delay dip is lopsided -- a gentle flank on the short-``tau``
+  side, a cliff on the long side -- so the run is taken in the lower third
+  and weighted towards its bottom, where the windows holding the delayed pair
+  lie.  For odd ``m >= 3`` that plateau is centred half a sample after the
+  delay (the centred second window has one more newer sample, see
+  :class:`~skdelay.TwoWindowEmbedding`), so callers pass ``shift=-0.5``.
+* **half-width** -- half the run's width, at least half a sample.
+* **significance** -- the depth ``baseline - min`` in standard errors of the
+  curve (``se``: from the spread of the squared errors over the queries, or,
+  without it, from the curve's own roughness) against the Bonferroni
+  threshold over the scanned delays, plus a minimum relative depth and an
+  interior minimum.  A curve without a significant dip has no delay.
+* **centre standard error** -- from redrawing the curve within its standard
+  errors (parametric bootstrap, ``random_state``); ``error`` combines it with
+  the half-width.
+* **best delay** -- the grid delay next to the centre with the lowest error:
+  the integer delay a model should use (rounding the centre can pick the
+  worse neighbour of a lopsided dip).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from scipy.stats import norm
+
+__all__ = ["DIP_ALPHA", "MIN_RELATIVE_DEPTH", "Dip", "locate_dip", "locate_dips"]
+
+#: Family-wise false-dip rate of the significance test.  The minimum of ``n`` noisy
+#: cells lies ~sqrt(2 ln n) standard errors below their mean by chance alone, so the
+#: threshold is Bonferroni's ``isf(DIP_ALPHA / n)`` (4.1 standard errors for 500 delays).
+DIP_ALPHA = 0.01
+#: Smallest depth, relative to the baseline, that counts as a dip.  With every point a
+#: query the standard errors shrink to a fraction of a percent, and the few-percent
+#: undulations of sigma_m(tau) that any record shows (the geometry of the second window
+#: changes smoothly with tau) would become "significant"; delay dips are 20-90 % deep
+#: (Mackey-Glass, the laser, Ikeda: ``tests/test_dips.py`` measures both populations).
+MIN_RELATIVE_DEPTH = 0.1
+#: Parametric-bootstrap draws for the standard error of the centre.
+N_BOOTSTRAP = 200
+#: Scale factor of the median absolute deviation to a Gaussian standard deviation.
+_MAD_TO_SD = 1.4826
+
+
+@dataclass(frozen=True)
+class Dip:
+    """The dip of one forecast-error curve (delays in the curve's index units).
+
+    ``significant`` False means the curve has no dip it can vouch for;
+    ``reason`` then says why.  ``error`` is the error bar of ``centre``:
+    ``sqrt(half_width**2 + centre_se**2)``.
+    """
+
+    centre: float
+    half_width: float
+    centre_se: float
+    tau_min: int
+    tau_best: int
+    min_error: float
+    baseline: float
+    depth: float
+    z: float
+    threshold: float
+    significant: bool
+    reason: str = ""
+
+    @property
+    def error(self):
+        """Error bar of the centre: half-width and centre standard error combined."""
+        return float(math.hypot(self.half_width, self.centre_se))
+
+
+def _run_around_minimum(taus, c, level):
+    """Centre, half-width and edge flag of the run below ``level`` around the minimum."""
+    i0 = int(np.argmin(c))
+    lo = c[i0]
+    lev = lo + level * (np.median(c) - lo)
+    left = i0
+    while left > 0 and c[left - 1] <= lev:
+        left -= 1
+    right = i0
+    while right < c.size - 1 and c[right + 1] <= lev:
+        right += 1
+
+    def cross(a, b):  # crossing of the level between grid points a (inside) and b (outside)
+        if c[b] == c[a]:
+            return taus[a]
+        return taus[a] + (lev - c[a]) / (c[b] - c[a]) * (taus[b] - taus[a])
+
+    t_left = taus[left] if left == 0 else cross(left, left - 1)
+    t_right = taus[right] if right == c.size - 1 else cross(right, right + 1)
+    depth = lev - c[left:right + 1]
+    if depth.sum() > 0:
+        centre = float(np.sum(taus[left:right + 1] * depth) / depth.sum())
+    else:
+        centre = float(taus[i0])
+    at_edge = left == 0 or right == c.size - 1
+    return centre, max(0.5 * (t_right - t_left), 0.5), i0, at_edge
+
+
+def _roughness_se(c):
+    """Standard error of single cells from the curve's second differences (robust)."""
+    if c.size < 5:
+        return np.full(c.size, np.nan)
+    d2 = np.diff(c, 2)
+    # a second difference of independent errors has variance 6 se^2
+    sd = _MAD_TO_SD * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0)
+    return np.full(c.size, sd)
+
+
+def locate_dip(taus, values, *, se=None, level=1 / 3, shift=0.0, alpha=DIP_ALPHA,
+               min_relative_depth=MIN_RELATIVE_DEPTH, random_state=0):
+    """Locate the dip of one forecast-error curve and test it (see the module notes).
+
+    Parameters
+    ----------
+    taus : array-like of shape (n,)
+        Scanned delays (increasing).
+    values : array-like of shape (n,)
+        The error at each delay (NaN cells are not allowed).
+    se : array-like of shape (n,), default=None
+        Standard error of each value; None estimates it from the curve's
+        roughness (second differences), which suits curves of independent cells.
+    level : float, default=1/3
+        Fraction of the depth (0 < level <= 1) that delimits the dip.
+    shift : float, default=0.0
+        Added to the centre (-0.5 for odd ``m >= 3``, see the module notes).
+    alpha : float, default=DIP_ALPHA
+        Family-wise false-dip rate (Bonferroni over the ``n`` delays).
+    min_relative_depth : float, default=MIN_RELATIVE_DEPTH
+        Smallest ``depth / baseline`` that counts as a dip.
+    random_state : int, default=0
+        Seed of the bootstrap for the centre's standard error.
+
+    Returns
+    -------
+    Dip
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from skdelay._dips import locate_dip
+    >>> taus = np.arange(10, 31)
+    >>> curve = 1 - 0.6 * np.exp(-0.5 * ((taus - 20.3) / 1.5) ** 2)
+    >>> dip = locate_dip(taus, curve, se=np.full(21, 0.01))
+    >>> dip.significant, round(dip.centre, 1), dip.tau_best
+    (True, 20.3, 20)
+    >>> locate_dip(taus, 1 + 0.01 * np.sin(taus), se=np.full(21, 0.01)).significant
+    False
+    """
+    taus = np.asarray(taus, dtype=np.float64)
+    c = np.asarray(values, dtype=np.float64)
+    if c.ndim != 1 or taus.shape != c.shape:
+        raise ValueError(f"taus and values must be 1-D of the same length, got {taus.shape} "
+                         f"and {c.shape}.")
+    if c.size < 3:
+        raise ValueError(f"a dip needs at least 3 scanned delays, got {c.size}; scan more.")
+    if not np.all(np.isfinite(c)):
+        bad = taus[~np.isfinite(c)]
+        raise ValueError(f"the forecast error is NaN or infinite at tau = {bad[:5].tolist()}; "
+                         "a dip cannot be located on an incomplete curve (rescan those delays).")
+    if not 0 < level <= 1:
+        raise ValueError(f"level must lie in (0, 1], got {level!r}.")
+    if not 0 < alpha < 1:
+        raise ValueError(f"alpha must lie in (0, 1), got {alpha!r}.")
+    se = _roughness_se(c) if se is None else np.asarray(se, dtype=np.float64)
+    if se.shape != c.shape:
+        raise ValueError(f"se must have the shape of values {c.shape}, got {se.shape}.")
+    centre, half, i0, at_edge = _run_around_minimum(taus, c, level)
+    baseline = float(np.median(c))
+    depth = baseline - float(c[i0])
+    noise = math.hypot(float(se[i0]), float(np.median(se))) if np.all(np.isfinite(se)) \
+        else math.nan
+    if math.isnan(noise):
+        z = math.nan
+    else:
+        z = depth / noise if noise > 0 else (math.inf if depth > 0 else 0.0)
+    threshold = float(norm.isf(alpha / c.size))
+    reason = ""
+    if at_edge:
+        reason = ("the lowest error lies at the edge of the scanned delays; scan delays on "
+                  "both sides of it")
+    elif math.isnan(z):
+        reason = "too few delays to estimate the noise of the curve; scan at least 5"
+    elif not z >= threshold:
+        reason = (f"the dip is {z:.1f} standard errors deep, below the {threshold:.1f} needed "
+                  f"over {c.size} delays")
+    elif baseline > 0 and depth / baseline < min_relative_depth:
+        reason = (f"the dip is {100 * depth / baseline:.1f} % of the baseline error, "
+                  f"shallower than {100 * min_relative_depth:.0f} %")
+    centre_se = 0.0
+    if np.all(np.isfinite(se)) and np.any(se > 0):
+        rng = np.random.default_rng(random_state)
+        draws = c + se * rng.standard_normal((N_BOOTSTRAP, c.size))
+        centres = [_run_around_minimum(taus, d, level)[0] for d in draws]
+        centre_se = float(np.std(centres, ddof=1))
+    centre += shift
+    near = np.flatnonzero(np.abs(taus - centre) < 1.0)
+    if near.size == 0:
+        near = np.array([int(np.argmin(np.abs(taus - centre)))])
+    best = int(taus[near[np.argmin(c[near])]])
+    return Dip(centre=float(centre), half_width=float(half), centre_se=centre_se,
+               tau_min=int(taus[i0]), tau_best=best, min_error=float(c[i0]),
+               baseline=baseline, depth=float(depth), z=float(z), threshold=threshold,
+               significant=not reason, reason=reason)
+
+
+def locate_dips(forecast_error, *, level=1 / 3, se=None, alpha=DIP_ALPHA,
+                min_relative_depth=MIN_RELATIVE_DEPTH, random_state=0):
+    """Dip of every column of a forecast-error table (:func:`locate_dip` per ``m``).
+
+    Parameters
+    ----------
+    forecast_error : pandas.DataFrame
+        Index ``tau``, one column per ``m`` (as from :func:`forecast_error_curve`).
+    level : float, default=1/3
+        Fraction of the dip depth (0 < level <= 1) that delimits the dip.
+    se : pandas.DataFrame, default=None
+        Standard errors of the cells (same shape); default: ``forecast_error.attrs["se"]``
+        when present, else estimated from each curve's roughness.
+    alpha, min_relative_depth, random_state
+        As in :func:`locate_dip`.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Index ``m``; columns ``delay`` (centre), ``half_width``, ``tau_min``
+        (grid minimum), ``min_error``, ``centre_se``, ``delay_error``
+        (half-width and centre error combined), ``tau_best`` (the grid delay
+        a model should use), ``depth``, ``z`` (depth in standard errors),
+        ``threshold``, ``significant`` and ``reason`` (why not, if not).
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> curve = pd.DataFrame({2: [9.0, 8, 7, 4, 2, 3, 9, 9, 9]},
+    ...                      index=pd.Index(range(10, 19), name="tau"))
+    >>> row = locate_dips(curve, level=0.5).loc[2]
+    >>> round(float(row["delay"]), 2), round(float(row["half_width"]), 2), int(row["tau_min"])
+    (14.17, 1.33, 14)
+    """
+    if se is None:
+        se = forecast_error.attrs.get("se")
+    taus = np.asarray(forecast_error.index, dtype=np.float64)
+    rows = {}
+    for m in forecast_error.columns:
+        shift = -0.5 if isinstance(m, (int, np.integer)) and m >= 3 and m % 2 else 0.0
+        dip = locate_dip(taus, forecast_error[m], se=None if se is None else se[m],
+                         level=level, shift=shift, alpha=alpha,
+                         min_relative_depth=min_relative_depth, random_state=random_state)
+        rows[m] = {"delay": dip.centre, "half_width": dip.half_width, "tau_min": dip.tau_min,
+                   "min_error": dip.min_error, "centre_se": dip.centre_se,
+                   "delay_error": dip.error, "tau_best": dip.tau_best, "depth": dip.depth,
+                   "z": dip.z, "threshold": dip.threshold, "significant": dip.significant,
+                   "reason": dip.reason}
+    out = pd.DataFrame.from_dict(rows, orient="index")
+    out.index.name = "m"
+    return out.astype({"tau_min": int, "tau_best": int, "significant": bool})
