@@ -23,7 +23,6 @@ import time
 
 import numpy as np
 
-from skdelay._testing_maps import henon, lorenz
 from skdelay.classic import (
     correlation_dimension,
     false_nearest_neighbors,
@@ -31,6 +30,7 @@ from skdelay.classic import (
     noise_reduction,
     poincare_section,
 )
+from skdelay.datasets import henon, lorenz
 from skdelay.systems import MackeyGlass
 
 

@@ -26,9 +26,7 @@ import warnings
 import numpy as np
 from sklearn.pipeline import make_pipeline
 
-from skdelay._embedding import TwoWindowEmbedding, required_lags
-from skdelay._local_linear import LocalLinearDelayMap
-from skdelay._windows import lagged_windows
+from skdelay import LocalLinearDelayMap, TwoWindowEmbedding, lagged_windows, required_lags
 from skdelay.dynamics import lyapunov_spectrum
 from skdelay.systems import MackeyGlass, measure
 

@@ -25,9 +25,7 @@ import numpy as np
 import pandas as pd
 from sklearn.pipeline import make_pipeline
 
-from skdelay._embedding import TwoWindowEmbedding, required_lags
-from skdelay._local_linear import LocalLinearDelayMap
-from skdelay._windows import lagged_windows
+from skdelay import LocalLinearDelayMap, TwoWindowEmbedding, lagged_windows, required_lags
 from skdelay.datasets import load_laser
 from skdelay.dynamics import dimension_density, lyapunov_spectrum
 

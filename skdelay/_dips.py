@@ -164,8 +164,8 @@ def locate_dip(taus, values, *, se=None, level=1 / 3, shift=0.0, alpha=DIP_ALPHA
     if c.ndim != 1 or taus.shape != c.shape:
         raise ValueError(f"taus and values must be 1-D of the same length, got {taus.shape} "
                          f"and {c.shape}.")
-    if c.size < 3:
-        raise ValueError(f"a dip needs at least 3 scanned delays, got {c.size}; scan more.")
+    if c.size == 0:
+        raise ValueError("the forecast-error curve is empty; scan at least 5 delays.")
     if not np.all(np.isfinite(c)):
         bad = taus[~np.isfinite(c)]
         raise ValueError(f"the forecast error is NaN or infinite at tau = {bad[:5].tolist()}; "
@@ -174,6 +174,12 @@ def locate_dip(taus, values, *, se=None, level=1 / 3, shift=0.0, alpha=DIP_ALPHA
         raise ValueError(f"level must lie in (0, 1], got {level!r}.")
     if not 0 < alpha < 1:
         raise ValueError(f"alpha must lie in (0, 1), got {alpha!r}.")
+    if c.size < 3:  # no flanks: the minimum is all there is, and it proves nothing
+        i0 = int(np.argmin(c))
+        return Dip(centre=float(taus[i0] + shift), half_width=0.5, centre_se=0.0,
+                   tau_min=int(taus[i0]), tau_best=int(taus[i0]), min_error=float(c[i0]),
+                   baseline=float(np.median(c)), depth=0.0, z=math.nan, threshold=math.nan,
+                   significant=False, reason=f"only {c.size} delay(s) scanned; scan at least 5")
     se = _roughness_se(c) if se is None else np.asarray(se, dtype=np.float64)
     if se.shape != c.shape:
         raise ValueError(f"se must have the shape of values {c.shape}, got {se.shape}.")

@@ -1,189 +1,313 @@
 """Minimal faithful window length ``m_d``: which models reproduce the data globally.
 
-For every ``m`` a two-window model is fitted, iterated from on-attractor
-initial conditions and its run compared with the data (Buenner et al. sec. IV):
-boundedness, histogram, power spectrum, cross-prediction error and the
-convergence of the Lyapunov spectrum with ``m``.  Each distance is judged
-against the same statistic between two stretches of the data of the run's
-length ("data-vs-data", the sampling spread of a perfect model).
+For every ``m`` one two-window model is fitted, iterated from several
+on-attractor histories, and its runs compared with the data (Buenner et al.
+sec. IV): boundedness, no collapse, histogram, power spectrum, cross-prediction
+error and the convergence of the Lyapunov spectrum with ``m``.
+
+Guarantees:
+
+* every distance is judged against its **sampling distribution**: the same
+  distance between pairs of disjoint data segments of the run's length (what
+  a perfect model would score with this much data), never one pair times a
+  fixed factor;
+* a run that **collapses** -- onto a fixed point (its spread falls far below
+  the smallest spread of any data segment) or a periodic orbit (it repeats
+  itself while the data do not) -- is "not faithful: collapsed at step n",
+  never "bounded";
+* ``m_d`` is the smallest ``m`` from which on *every* model up to ``m_max`` is
+  faithful, so "faithful at m" implies "faithful at m + 1";
+* everything computed is returned (:class:`FaithfulnessResult`: the models,
+  the runs and the spectra), so an analysis never fits, runs or computes a
+  spectrum twice.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import numpy as np
 import pandas as pd
-from sklearn.pipeline import make_pipeline
 
+from . import validation
 from ._checks import check_positive_int, check_random_state, check_series
-from ._embedding import TwoWindowEmbedding, required_lags
-from ._local_linear import LocalLinearDelayMap
-from ._windows import lagged_windows
+from ._correlation import autocorrelation
+from ._dips import locate_dips
+from ._embedding import required_lags
+from ._iterate import iterate
+from ._lyapunov import covering_spectrum
+from ._model import ModelOptions, fit_delay_model
+from ._selection import forecast_error_curve
 
-#: Documented faithfulness thresholds (see :func:`minimal_embedding`).
-THRESHOLDS = {
-    "histogram": 2.0,   # d_hist(data, run) <= 2 x d_hist(data_a, data_b)
-    "spectrum": 2.0,    # d_psd(data, run)  <= 2 x d_psd(data_a, data_b)
-    "chi": 1.25,        # chi(data, run)    <= 1.25 x chi(data, data)
-    "lyapunov": 0.25,   # relative change of lambda_1 and D_KY vs the m_max model <= 25 %
-}
+__all__ = ["CRITERIA", "FaithfulnessResult", "minimal_embedding"]
+
+#: The compared properties, in the order of the table.
+CRITERIA = ("histogram", "spectrum", "chi", "lyapunov")
+#: Free runs per model.  One run decides nothing (a chaotic run's histogram distance
+#: fluctuates by a factor ~2 between starting histories, and a single run flipped the
+#: verdict of Mackey-Glass tau = 40 with noise); the median of four is stable.
+N_RUNS = 4
+#: Upper end of the data-vs-data band: the run's median distance may not exceed this
+#: quantile of the distances between disjoint data segments of the run's length.
+REFERENCE_QUANTILE = 0.95
+#: At most this many data segments for the reference distances (6..28 pairs).
+MAX_SEGMENTS = 8
+#: A run has collapsed onto a fixed point when a window's standard deviation falls
+#: below this fraction of the smallest window standard deviation of the data: a chaotic
+#: signal never goes quiet for a whole delay loop, a damped one does within a few loops.
+COLLAPSE_STD_FRACTION = 0.25
+#: ... or onto a periodic orbit when its autocorrelation beyond the decorrelation time
+#: revives to this level while the data's stays below it (a periodic run repeats itself
+#: up to rounding; the revivals of chaotic delay data stay below ~0.9).
+PERIODIC_ACF = 0.97
+#: The Lyapunov spectrum has converged in ``m`` when lambda_1 and D_KY of a model lie
+#: within this relative change of the ``m_max`` model, or lambda_1 within three combined
+#: block-spread standard errors of it (the statistical resolution of the estimate).
+LYAPUNOV_TOLERANCE = 0.25
 
 
-def _default_taus(series, m_values, tau_grid, random_state, n_jobs):
-    from ._selection import forecast_error_curve
+@dataclass
+class FaithfulnessResult:
+    """What :func:`minimal_embedding` computed; unpacks as ``table, m_d``.
 
-    curve = forecast_error_curve(series, m=tuple(m_values), tau=tau_grid,
-                                 n_queries=min(series.size // 2, 5000),
-                                 random_state=random_state, n_jobs=n_jobs)
-    return {m: int(curve[m].idxmin()) for m in m_values}
-
-
-def _compare(s, run, chi_m, chi_tau, sample_dt, seed):
-    """Distances data-vs-run and data-vs-data, all between stretches of the run's length.
-
-    ``a`` = first ``L`` samples of the data, ``b`` = last ``L`` (disjoint),
-    ``L = min(len(run), len(data) // 2)``: the ``*_ref`` values are what a
-    perfect model would score with this much data.  Power spectra are
-    compared below the frequency holding 99 % of the data's power, so the
-    measurement-noise floor of the data (absent from a model run) does not count.
+    Attributes
+    ----------
+    table : pandas.DataFrame
+        One row per ``m``: ``tau``, ``status`` (a sentence), ``faithful``,
+        ``collapsed_at`` (run step or NaN), and for every criterion in
+        :data:`CRITERIA` its value, band (``*_band``: upper end of the
+        data-vs-data distribution) and ``*_pass``; plus ``lambda_1``, ``d_ky``,
+        ``h_ks``, ``n_positive``.
+    m_d : int or None
+        Smallest ``m`` from which on every model is faithful.
+    reason : str
+        Why ``m_d`` is None (empty otherwise).
+    models, runs, spectra : dict
+        Per ``m``: the fitted pipeline, its free runs (list of arrays, the
+        transient dropped) and its :class:`~skdelay.dynamics.LyapunovSpectrum`.
     """
-    from . import validation
 
-    n = min(run.size, s.size // 2)
-    a, b, run = s[:n], s[s.size - n:], run[:n]
-    freqs, psd = validation.power_spectrum(a, sample_dt=sample_dt)
+    table: pd.DataFrame
+    m_d: int | None
+    reason: str = ""
+    models: dict = field(default_factory=dict, repr=False)
+    runs: dict = field(default_factory=dict, repr=False)
+    spectra: dict = field(default_factory=dict, repr=False)
+
+    def __iter__(self):
+        yield self.table
+        yield self.m_d
+
+
+# ----------------------------------------------------------------------------- collapse
+def _window_stds(x, window):
+    n = x.size // window
+    return x[:n * window].reshape(n, window).std(axis=1)
+
+
+def _max_revival(x, min_lag, max_lag):
+    """Largest autocorrelation at lags ``min_lag..max_lag`` (bias-corrected: a periodic
+    signal reaches 1 at every multiple of its period)."""
+    acf = autocorrelation(x, max_lag)
+    if acf.size <= min_lag:
+        return 0.0
+    lags = np.arange(acf.size)
+    return float(np.max((acf * x.size / (x.size - lags))[min_lag:]))
+
+
+def collapse_step(run, data, *, window):
+    """First run step of a collapse onto a fixed point or periodic orbit (None if none).
+
+    Returns ``(step, kind)`` with ``kind`` in {"fixed point", "periodic orbit"}.
+    """
+    run = np.asarray(run, dtype=float)
+    if run.size < 2 * window:
+        return None
+    quiet = COLLAPSE_STD_FRACTION * float(_window_stds(data, window).min())
+    stds = _window_stds(run, window)
+    low = np.flatnonzero(stds < quiet)
+    if low.size:
+        return int(low[0] * window), "fixed point"
+    tail = run[run.size // 2:]
+    data_acf = autocorrelation(data[:max(tail.size, 4 * window)], 1)
+    if not data_acf.size:
+        return None
+    # beyond one window (the decorrelation scale of a delay loop) up to a quarter record
+    lo, hi = window, max(window + 1, tail.size // 4)
+    if _max_revival(tail, lo, hi) >= PERIODIC_ACF > _max_revival(data[:4 * tail.size], lo, hi):
+        return int(run.size // 2), "periodic orbit"
+    return None
+
+
+# ----------------------------------------------------------------------------- distances
+def _segments(s, length, n_max):
+    n = min(n_max, s.size // length)
+    starts = np.linspace(0, s.size - length, n).astype(int)
+    return [s[a:a + length] for a in starts]
+
+
+def _spectrum_cutoff(x, sample_dt):
+    """Frequency holding 99 % of the power: the measurement-noise floor above it is
+    not a model property."""
+    freqs, psd = validation.power_spectrum(x, sample_dt=sample_dt)
     cum = np.cumsum(psd) / psd.sum()
-    f_max = float(freqs[min(np.searchsorted(cum, 0.99) + 1, freqs.size - 1)])
-    chi = {"m": chi_m, "tau": chi_tau, "random_state": seed, "n_queries": min(n, 5000)}
-    return {
-        "hist_distance": validation.histogram_distance(a, run).distance,
-        "hist_ref": validation.histogram_distance(a, b).distance,
-        "spectrum_distance": validation.spectrum_distance(
-            a, run, sample_dt=sample_dt, max_frequency=f_max).distance,
-        "spectrum_ref": validation.spectrum_distance(
-            a, b, sample_dt=sample_dt, max_frequency=f_max).distance,
-        "chi": validation.cross_prediction_error(a, run, **chi),
-        "chi_ref": validation.cross_prediction_error(a, b, **chi),
-    }
+    return float(freqs[min(np.searchsorted(cum, 0.99) + 1, freqs.size - 1)])
 
 
-def _fit(series, m, tau, n_neighbors, ridge, theiler_window):
-    X, y = lagged_windows(series, required_lags(m, tau))
-    model = make_pipeline(
-        TwoWindowEmbedding(m=m, tau=tau),
-        LocalLinearDelayMap(n_neighbors=n_neighbors, ridge=ridge, theiler_window=theiler_window),
-    )
-    return model.fit(X, y)
+def _distance(kind, a, b, *, sample_dt, f_max, chi_m, chi_tau, seed):
+    if kind == "histogram":
+        return validation.histogram_distance(a, b).distance
+    if kind == "spectrum":
+        return validation.spectrum_distance(a, b, sample_dt=sample_dt,
+                                            max_frequency=f_max).distance
+    return validation.cross_prediction_error(a, b, m=chi_m, tau=chi_tau, random_state=seed,
+                                             n_queries=min(a.size, 2000))
+
+
+def _reference_bands(segs, **kw):
+    """Upper end of the data-vs-data distribution of each distance (all segment pairs)."""
+    pairs = [(i, j) for i in range(len(segs)) for j in range(i + 1, len(segs))]
+    return {kind: float(np.quantile([_distance(kind, segs[i], segs[j], **kw) for i, j in pairs],
+                                    REFERENCE_QUANTILE))
+            for kind in ("histogram", "spectrum", "chi")}
+
+
+def _run_distances(runs, segs, **kw):
+    """Median over runs of each distance (each run: median against the data segments)."""
+    return {kind: float(np.median([np.median([_distance(kind, seg, run, **kw) for seg in segs])
+                                   for run in runs]))
+            for kind in ("histogram", "spectrum", "chi")}
+
+
+# ----------------------------------------------------------------------------- main
+def _taus_for(s, m_values, tau, tau_grid, seed, n_jobs):
+    if tau is None:
+        curve = forecast_error_curve(s, m=tuple(m_values), tau=tau_grid,
+                                     n_queries=min(s.size // 2, 5000), random_state=seed,
+                                     n_jobs=n_jobs)
+        dips = locate_dips(curve)
+        return {m: int(dips.loc[m, "tau_best"]) for m in m_values}
+    if isinstance(tau, dict):
+        missing = [m for m in m_values if m not in tau]
+        if missing:
+            raise ValueError(f"tau dict has no delay for m = {missing}; give one per m.")
+        return {m: check_positive_int(tau[m], name=f"tau[{m}]") for m in m_values}
+    return dict.fromkeys(m_values, check_positive_int(tau, name="tau"))
+
+
+def _lyapunov_verdicts(table, spectra, m_max):
+    ref = spectra[m_max]
+    lam_ref, d_ref = float(ref.exponents[0]), float(ref.kaplan_yorke_dimension)
+    change, ok = {}, {}
+    for m, spec in spectra.items():
+        lam, d_ky = float(spec.exponents[0]), float(spec.kaplan_yorke_dimension)
+        rel = max(abs(lam - lam_ref) / max(abs(lam_ref), 1e-300),
+                  abs(d_ky - d_ref) / max(d_ref, 1.0))
+        se = float(np.hypot(spec.spread[0], ref.spread[0]))
+        change[m] = rel
+        ok[m] = bool(rel <= LYAPUNOV_TOLERANCE
+                     or (abs(lam - lam_ref) <= 3 * se
+                         and abs(d_ky - d_ref) / max(d_ref, 1.0) <= LYAPUNOV_TOLERANCE))
+    table["lyapunov"] = pd.Series(change)
+    table["lyapunov_band"] = LYAPUNOV_TOLERANCE
+    table["lyapunov_pass"] = pd.Series(ok)
 
 
 def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_min=1,
-                      n_steps=None, n_neighbors=None, ridge=1e-3, theiler_window=2,
-                      n_transient=None, n_exponents=None, chi_m=None, sample_dt=1.0,
-                      thresholds=None, random_state=None, n_jobs=None):
-    """Smallest window length ``m`` whose iterated model reproduces the data.
+                      n_steps=None, n_runs=N_RUNS, model=None, n_exponents=None,
+                      max_doublings=0, n_spectrum_steps=None, flow=False, chi_m=None,
+                      sample_dt=1.0, random_state=None, n_jobs=None):
+    """Smallest window length ``m`` whose iterated models reproduce the data.
 
     For ``m = m_min .. m_max``: fit ``Pipeline(TwoWindowEmbedding(m, tau_m),
-    LocalLinearDelayMap)`` on ``series``, iterate it for ``n_steps`` from a
-    random on-attractor history (a segment of the data), drop ``n_transient``
-    steps, and compare the run with a stretch ``a`` of the data of the same
-    length ``L = min(n_steps, len(series) // 2)``.  Every distance has a
-    reference: the same statistic between ``a`` and a disjoint stretch ``b``
-    of the data (the ``*_ref`` columns: what a perfect model scores with this
-    much data).  A model is **faithful** when all of these hold:
+    LocalLinearDelayMap)``, iterate it ``n_runs`` times from random
+    on-attractor histories (segments of the data) for ``n_steps`` after a
+    transient, and compare the runs with the data (see the module notes).  A
+    model is **faithful** when no run escapes the data's support or collapses,
+    and
 
-    * *bounded*: the run never leaves the data's support (see :func:`iterate`);
-    * ``hist_distance <= 2 * hist_ref``: Hellinger distance of the value
-      histograms (:func:`~skdelay.validation.histogram_distance`);
-    * ``spectrum_distance <= 2 * spectrum_ref``: rms log-PSD distance
-      (:func:`~skdelay.validation.spectrum_distance`) below the frequency that
-      holds 99 % of the data's power (the data's measurement-noise floor is not
-      a model property);
-    * ``chi <= 1.25 * chi_ref``: cross-prediction error chi(a, run) of the data
-      from the run's vectors vs chi(a, b), local constant, in ``chi_m + chi_m``
-      dimensions at ``tau_{chi_m}`` (the paper's table);
-    * ``lyap_change <= 0.25``: the Lyapunov spectrum has converged, i.e. the
-      larger of the relative changes of ``lambda_1`` and of ``D_KY`` against
-      the model with ``m_max`` is at most 25 %.
+    * ``histogram``: the Hellinger distance of the value histograms
+      (:func:`~skdelay.validation.histogram_distance`),
+    * ``spectrum``: the rms log-PSD distance below the frequency holding 99 %
+      of the data's power (:func:`~skdelay.validation.spectrum_distance`),
+    * ``chi``: the cross-prediction error of the data from a run's vectors
+      (:func:`~skdelay.validation.cross_prediction_error`, ``chi_m + chi_m``
+      dimensions at ``tau_{chi_m}``, the paper's table),
 
-    The factors are :data:`THRESHOLDS`; override them with ``thresholds``
-    (keys ``histogram``, ``spectrum``, ``chi``, ``lyapunov``).  One run per
-    ``m`` is compared, so borderline cases can flip with ``random_state``;
-    longer runs (``n_steps``) sharpen the decision.
+    each the median over runs, lie within the band of the same distance between
+    disjoint data segments of the run's length (its :data:`REFERENCE_QUANTILE`
+    quantile); and ``lyapunov``: lambda_1 and D_KY have converged against the
+    ``m_max`` model (:data:`LYAPUNOV_TOLERANCE`).
 
     Parameters
     ----------
     series : array-like of shape (n_samples,)
         The data, sampled at step 1 (``sample_dt`` only sets units).
     tau : int or dict {m: int}, default=None
-        Delay in samples for all ``m`` or per ``m``; default: the minimum of
-        each ``m``'s forecast-error curve (:func:`~skdelay.forecast_error_curve`,
-        the scan behind :class:`~skdelay.DelaySelectorCV`) over ``tau_grid``.
+        Delay in samples for all ``m`` or per ``m``; default: the best delay of
+        each ``m``'s forecast-error dip (:func:`~skdelay.locate_dips`,
+        ``tau_best``) over ``tau_grid``.
     tau_grid : iterable of int, default=range(1, 101)
         Delays scanned when ``tau`` is None (must cover the feedback delay).
     m_max, m_min : int, default=5, 1
         Window lengths to test.
     n_steps : int, default=None
-        Length of each model run (default: ``min(len(series), 50_000)``).
-    n_neighbors : int, default=None
-        Neighbourhood size of the models (default ``4 * (2 m + 1)``).
-    ridge, theiler_window
-        Passed to :class:`~skdelay.LocalLinearDelayMap`.
-    n_transient : int, default=None
-        Initial run steps dropped (default ``max(2 * tau, 500)``).
-    n_exponents : int, default=None
+        Length of each compared run (default ``min(len(series) // 4, 20_000)``,
+        so that at least four disjoint data segments of that length exist).
+    n_runs : int, default=N_RUNS
+        Free runs per model.
+    model : ModelOptions, default=None
+        Neighbourhood size, ridge and Theiler window of the models (None:
+        ``ModelOptions()``).
+    n_exponents : int or dict {m: int}, default=None
         Exponents computed per model (default ``min(D, 30)``).
+    max_doublings : int or dict {m: int}, default=0
+        Double the exponents (up to this many times) while the Kaplan-Yorke
+        sum stays positive (:func:`~skdelay._lyapunov.covering_spectrum`).
+    n_spectrum_steps : int, default=None
+        Steps of the data along which the spectra are computed (default: all).
+    flow : bool, default=False
+        The data sample a flow: pin the exponent nearest zero (see
+        :func:`~skdelay.dynamics.lyapunov_spectrum`).
     chi_m : int, default=None
         Window length of the cross-prediction vectors (default ``m_max``).
     sample_dt : float, default=1.0
         Time per sample (for the power spectra and exponents).
-    thresholds : dict, default=None
-        Overrides of :data:`THRESHOLDS`.
     random_state : int, Generator or None
-        Initial conditions and probes.
+        Initial histories and probes.
     n_jobs : int, default=None
         Passed to the delay scan.
 
     Returns
     -------
-    table : pandas.DataFrame
-        One row per ``m`` (index ``m``): ``tau``, ``bounded``,
-        ``hist_distance``, ``hist_ref``, ``spectrum_distance``,
-        ``spectrum_ref``, ``chi``, ``chi_ref``, ``lambda_1``, ``d_ky``,
-        ``h_ks``, ``n_positive``, ``lyap_change``, ``faithful``.
-    m_d : int or None
-        The smallest faithful ``m`` (None if none is).
+    FaithfulnessResult
+        Unpacks as ``table, m_d``; also holds the models, runs and spectra.
 
     Examples
     --------
     >>> from skdelay.dynamics import minimal_embedding
     >>> from skdelay.systems import MackeyGlass
     >>> x = MackeyGlass(tau=17.0).simulate(20000, random_state=0)
-    >>> table, m_d = minimal_embedding(x, tau=17, m_max=3, n_steps=8000, random_state=0)
-    >>> list(table.index), m_d in (1, 2, 3)
+    >>> table, m_d = minimal_embedding(x, tau=17, m_max=3, n_runs=2, random_state=0)
+    >>> list(table.index), m_d in (1, 2, 3, None)
     ([1, 2, 3], True)
     """
-    from .dynamics import iterate, lyapunov_spectrum
-
     s = check_series(series, name="series", min_length=100)
     m_max = check_positive_int(m_max, name="m_max")
     m_min = check_positive_int(m_min, name="m_min", maximum=m_max)
+    n_runs = check_positive_int(n_runs, name="n_runs")
+    model = ModelOptions() if model is None else model
+    if not isinstance(model, ModelOptions):
+        raise TypeError(f"model must be a ModelOptions, got {type(model).__name__}.")
     m_values = list(range(m_min, m_max + 1))
     rng = check_random_state(random_state)
-    unknown = set(thresholds or {}) - set(THRESHOLDS)
-    if unknown:
-        raise ValueError(f"unknown threshold(s) {sorted(unknown)}; valid keys: "
-                         f"{sorted(THRESHOLDS)}.")
-    th = dict(THRESHOLDS, **(thresholds or {}))
-    if tau is None:
-        taus = _default_taus(s, m_values, tau_grid, int(rng.randint(2**31)), n_jobs)
-    elif isinstance(tau, dict):
-        missing = [m for m in m_values if m not in tau]
-        if missing:
-            raise ValueError(f"tau dict has no delay for m = {missing}; give one per m.")
-        taus = {m: check_positive_int(tau[m], name=f"tau[{m}]") for m in m_values}
-    else:
-        taus = dict.fromkeys(m_values, check_positive_int(tau, name="tau"))
-    n_steps = min(s.size, 50_000) if n_steps is None else check_positive_int(n_steps,
-                                                                              name="n_steps")
+    taus = _taus_for(s, m_values, tau, tau_grid, int(rng.randint(2**31)), n_jobs)
+    length = min(s.size // 4, 20_000) if n_steps is None else check_positive_int(
+        n_steps, name="n_steps")
+    if 4 * length > s.size:
+        raise ValueError(f"n_steps={length} needs a series of at least {4 * length} samples "
+                         f"(four disjoint data segments of the run's length for the reference "
+                         f"band); got {s.size}. Pass a smaller n_steps or a longer series.")
     chi_m = m_max if chi_m is None else check_positive_int(chi_m, name="chi_m")
     chi_tau = taus[m_max]
     for m in m_values:
@@ -192,44 +316,80 @@ def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_mi
         if s.size < need:
             raise ValueError(f"series has {s.size} samples; m={m}, tau={taus[m]} needs at least "
                              f"{need}. Pass a longer series or smaller m_max / tau.")
+    n_exp = n_exponents if isinstance(n_exponents, dict) else dict.fromkeys(m_values, n_exponents)
+    doublings = (max_doublings if isinstance(max_doublings, dict)
+                 else dict.fromkeys(m_values, max_doublings))
 
-    rows, spectra = {}, {}
+    seed = int(rng.randint(2**31))
+    segs = _segments(s, length, MAX_SEGMENTS)
+    f_max = _spectrum_cutoff(segs[0], sample_dt)
+    bands = _reference_bands(segs, sample_dt=sample_dt, f_max=f_max, chi_m=chi_m,
+                             chi_tau=chi_tau, seed=seed)
+    window = max(2 * max(taus.values()), 200)
+    rows, models, runs, spectra = {}, {}, {}, {}
     for m in m_values:
         t_m = taus[m]
         dim = required_lags(m, t_m)
-        k = 4 * (2 * m + 1) if n_neighbors is None else n_neighbors
-        model = _fit(s, m, t_m, k, ridge, theiler_window)
-        skip = max(2 * t_m, 500) if n_transient is None else int(n_transient)
-        start = int(rng.randint(0, s.size - dim))
-        run = iterate(model, s[start:start + dim], n_steps + skip, on_escape="ignore")
-        run = np.asarray(run[skip:])
-        bounded = run.size == n_steps and np.ptp(run) > 0
-        row = {"tau": t_m, "bounded": bool(bounded)}
-        if bounded:
-            row.update(_compare(s, run, chi_m, chi_tau, sample_dt, int(rng.randint(2**31))))
-        n_exp = min(dim, 30) if n_exponents is None else min(dim, int(n_exponents))
-        spec = lyapunov_spectrum(model, s, n_exponents=n_exp, sample_dt=sample_dt)
-        spectra[m] = spec
-        row.update(lambda_1=spec.exponents[0], d_ky=spec.kaplan_yorke_dimension,
-                   h_ks=spec.ks_entropy, n_positive=spec.n_positive)
+        models[m] = fit_delay_model(s, m, t_m, model)
+        skip = max(2 * t_m, 500)
+        runs[m], row = [], {"tau": t_m, "collapsed_at": np.nan, "status": ""}
+        for _ in range(n_runs):
+            start = int(rng.randint(0, s.size - dim))
+            run = iterate(models[m], s[start:start + dim], length + skip, on_escape="ignore")
+            run = np.asarray(run[skip:], dtype=float)
+            runs[m].append(run)
+            if run.size < length:
+                row["status"] = (f"not faithful: the run left the data's support after "
+                                 f"{run.size} of {length} steps")
+                break
+            collapse = collapse_step(run, s, window=window)
+            if collapse is not None:
+                row["collapsed_at"] = collapse[0]
+                row["status"] = f"not faithful: collapsed onto a {collapse[1]} at step {collapse[0]}"
+                break
+        if not row["status"]:
+            row.update(_run_distances(runs[m], segs, sample_dt=sample_dt, f_max=f_max,
+                                      chi_m=chi_m, chi_tau=chi_tau, seed=seed))
+        k = min(dim, 30) if n_exp[m] is None else min(dim, int(n_exp[m]))
+        spectra[m] = covering_spectrum(models[m], s, n_exponents=k, n_steps=n_spectrum_steps,
+                                       sample_dt=sample_dt, max_doublings=int(doublings[m]),
+                                       flow=flow)
+        row.update(lambda_1=float(spectra[m].exponents[0]),
+                   d_ky=float(spectra[m].kaplan_yorke_dimension),
+                   h_ks=float(spectra[m].ks_entropy), n_positive=int(spectra[m].n_positive))
         rows[m] = row
 
     table = pd.DataFrame.from_dict(rows, orient="index")
     table.index.name = "m"
-    ref = table.loc[m_max]
-    table["lyap_change"] = np.maximum(
-        np.abs(table["lambda_1"] - ref["lambda_1"]) / abs(ref["lambda_1"]),
-        np.abs(table["d_ky"] - ref["d_ky"]) / max(ref["d_ky"], 1.0))
-    for col in ("hist_distance", "hist_ref", "spectrum_distance", "spectrum_ref", "chi",
-                "chi_ref"):
-        if col not in table:
-            table[col] = np.nan
-    table["faithful"] = (
-        table["bounded"]
-        & (table["hist_distance"] <= th["histogram"] * table["hist_ref"])
-        & (table["spectrum_distance"] <= th["spectrum"] * table["spectrum_ref"])
-        & (table["chi"] <= th["chi"] * table["chi_ref"])
-        & (table["lyap_change"] <= th["lyapunov"])
-    ).fillna(False).astype(bool)
-    faithful = table.index[table["faithful"]]
-    return table, (int(faithful[0]) if len(faithful) else None)
+    for kind in ("histogram", "spectrum", "chi"):
+        if kind not in table:
+            table[kind] = np.nan
+        table[f"{kind}_band"] = bands[kind]
+        table[f"{kind}_pass"] = (table[kind] <= bands[kind]).fillna(False).astype(bool)
+    _lyapunov_verdicts(table, spectra, m_max)
+    runs_ok = table["status"] == ""
+    passes = table[[f"{c}_pass" for c in CRITERIA]].all(axis=1)
+    table["faithful"] = (runs_ok & passes).astype(bool)
+    for m in m_values:
+        if table.loc[m, "status"]:
+            continue
+        failed = [c for c in CRITERIA if not table.loc[m, f"{c}_pass"]]
+        table.loc[m, "status"] = ("faithful" if not failed else
+                                  "not faithful: " + ", ".join(
+                                      f"{c} {table.loc[m, c]:.3g} > {table.loc[m, c + '_band']:.3g}"
+                                      for c in failed))
+    m_d, reason = None, ""
+    for m in m_values:  # smallest m from which on every model is faithful
+        if table.loc[m:, "faithful"].all():
+            m_d = int(m)
+            break
+    if m_d is None:
+        reason = (f"the model with m={m_max} is not faithful ({table.loc[m_max, 'status']})"
+                  if not table.loc[m_max, "faithful"] else
+                  "no m up to m_max is faithful")
+    cols = ["tau", "status", "faithful", "collapsed_at"]
+    for c in CRITERIA:
+        cols += [c, f"{c}_band", f"{c}_pass"]
+    cols += ["lambda_1", "d_ky", "h_ks", "n_positive"]
+    return FaithfulnessResult(table=table[cols], m_d=m_d, reason=reason, models=models,
+                              runs=runs, spectra=spectra)

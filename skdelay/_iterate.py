@@ -12,12 +12,21 @@ or outside the data range by a margin.
 from __future__ import annotations
 
 import warnings
+import weakref
 
 import numpy as np
 from numba import njit
 
+from ._checks import check_positive_int, check_random_state, check_series
 from ._kdtree import build_tree, query_knn
+from ._model import resolve_model
 from ._neighbours import RADIUS_CAP, Standardiser, fit_neighbourhood
+
+__all__ = ["ModelEscapeError", "ModelEscapeWarning", "Trajectory", "iterate", "run_model",
+           "support_guard"]
+
+#: Cached support guards of fitted maps (a guard costs a tree build and a probe search).
+_GUARDS = weakref.WeakKeyDictionary()
 
 ESCAPE_REASONS = {
     1: "the state left the support of the data (nearest database vector too far)",
@@ -177,3 +186,119 @@ def run_model(guard, history, n_steps, lags, *, k, radius, ridge, order, kicks, 
     if on_escape == "warn":
         warnings.warn(msg, ModelEscapeWarning, stacklevel=3)
     return Trajectory(out, escaped=True, escape_step=n_done, reason=reason)
+
+
+def support_guard(reg, *, distance_factor, range_margin):
+    """The (cached) :class:`~skdelay._iterate.SupportGuard` of a fitted map."""
+    data = reg.fit_X_
+    key = (id(data), data.shape, data[0].tobytes(), data[-1].tobytes(),
+           float(distance_factor), float(range_margin))
+    try:
+        cached = _GUARDS.get(reg)
+    except TypeError:  # not weak-referenceable
+        cached = None
+    if cached is not None and cached[0] == key:
+        return cached[1]
+    if hasattr(reg, "database"):
+        data, targets = reg.database()
+        scaler = reg.x_scaler_
+    else:  # a duck-typed local map without standardisation
+        data, targets, scaler = reg.fit_X_, reg.fit_y_, None
+    guard = SupportGuard(data, targets, distance_factor=distance_factor,
+                         range_margin=range_margin, scaler=scaler)
+    try:
+        _GUARDS[reg] = (key, guard)
+    except TypeError:
+        pass
+    return guard
+
+
+def check_tau(tau, model):
+    """The iteration delay: ``tau`` checked, or the model's fitted one."""
+    return model.tau if tau is None else check_positive_int(tau, name="tau")
+
+
+def iterate(model, history, n_steps, *, tau=None, noise=0.0, random_state=None,
+            on_escape="warn", escape_distance=5.0, range_margin=0.25):
+    """Free-run a fitted two-window model from an initial history.
+
+    Each step builds ``v_n(m, tau)`` from the last values, fits the local
+    affine map on its neighbours in the model's database exactly as
+    :meth:`LocalLinearDelayMap.predict` does, and appends ``s_{n+1}`` (plus
+    dynamical noise).  The whole loop runs compiled: one k-d tree query and
+    one small Cholesky solve per step.
+
+    Parameters
+    ----------
+    model : Pipeline or (TwoWindowEmbedding, LocalLinearDelayMap) or DelaySelectorCV
+        A fitted two-window model.
+    history : array-like of shape (n_history,)
+        Initial values, oldest first (the last value is the most recent);
+        at least ``required_lags(m, tau)`` (~ ``tau + m // 2``) of them, e.g.
+        a segment of the data for on-attractor initial conditions.
+    n_steps : int
+        Number of new values to generate.
+    tau : int, default=None
+        Delay (samples) of the second window during the run; default: the
+        fitted one.  A model fitted at delay ``tau_a`` generates data for
+        ``tau_b`` as long as the run stays on the support of the data.
+    noise : float, default=0.0
+        Standard deviation (data units) of Gaussian dynamical noise added
+        to every new value.
+    random_state : int, Generator or None
+        Seed of the dynamical noise.
+    on_escape : {"warn", "raise", "ignore"}, default="warn"
+        What to do when the run leaves the data's support: warn with
+        :class:`ModelEscapeWarning` and return the values up to there,
+        raise :class:`ModelEscapeError`, or return them silently.
+    escape_distance : float, default=5.0
+        The run escaped when the query's nearest database vector is farther
+        than ``escape_distance`` times the 99th percentile of the data's own
+        nearest-neighbour distances.
+    range_margin : float, default=0.25
+        ... or when a value leaves the data range widened by this fraction
+        of its width (or is not finite).
+
+    Returns
+    -------
+    Trajectory
+        1-D float array of the generated values (without the history), with
+        attributes ``escaped``, ``escape_step`` and ``reason``.
+
+    Raises
+    ------
+    ModelEscapeError
+        With ``on_escape="raise"`` when the model leaves the support.
+
+    Examples
+    --------
+    >>> from sklearn.pipeline import make_pipeline
+    >>> from skdelay import LocalLinearDelayMap, TwoWindowEmbedding, lagged_windows
+    >>> from skdelay.dynamics import iterate
+    >>> from skdelay.systems import MackeyGlass
+    >>> x = MackeyGlass(tau=17.0).simulate(6000, random_state=0)
+    >>> X, y = lagged_windows(x, n_lags=18)
+    >>> model = make_pipeline(TwoWindowEmbedding(m=2, tau=17),
+    ...                       LocalLinearDelayMap(n_neighbors=20)).fit(X, y)
+    >>> run = iterate(model, x[:100], 3000)
+    >>> run.shape, run.escaped, bool(x.min() - 0.05 < run.min() < run.max() < x.max() + 0.05)
+    ((3000,), False, True)
+    """
+    mdl = resolve_model(model)
+    tau = check_tau(tau, mdl)
+    n_steps = check_positive_int(n_steps, name="n_steps", minimum=0)
+    if on_escape not in ("warn", "raise", "ignore"):
+        raise ValueError(f"on_escape must be 'warn', 'raise' or 'ignore', got {on_escape!r}.")
+    dim = mdl.state_dim(tau)
+    hist = check_series(history, name="history", min_length=dim, allow_constant=True)
+    noise = float(noise)
+    if not noise >= 0:
+        raise ValueError(f"noise must be a non-negative standard deviation, got {noise}.")
+    kicks = np.zeros(n_steps)
+    if noise > 0:
+        kicks = noise * check_random_state(random_state).standard_normal(n_steps)
+    reg = mdl.regressor
+    guard = support_guard(reg, distance_factor=escape_distance, range_margin=range_margin)
+    return run_model(guard, hist, n_steps, mdl.lags(tau), k=reg.n_neighbors,
+                     radius=getattr(reg, "radius", None), ridge=reg.ridge,
+                     order=getattr(reg, "order", 1), kicks=kicks, on_escape=on_escape)

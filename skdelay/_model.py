@@ -2,16 +2,15 @@
 
 from __future__ import annotations
 
-import weakref
 from dataclasses import dataclass
 
 import numpy as np
-from sklearn.pipeline import Pipeline
+from sklearn.pipeline import Pipeline, make_pipeline
 from sklearn.utils.validation import check_is_fitted
 
 from ._embedding import TwoWindowEmbedding, required_lags, two_window_columns
-
-_GUARDS = weakref.WeakKeyDictionary()
+from ._local_linear import LocalLinearDelayMap
+from ._windows import lagged_windows
 
 
 @dataclass(frozen=True)
@@ -92,28 +91,35 @@ def self_query_index(reg, V, *, n_probe=16, random_state=0):
     return None
 
 
-def support_guard(reg, *, distance_factor, range_margin):
-    """The (cached) :class:`~skdelay._iterate.SupportGuard` of a fitted map."""
-    from ._iterate import SupportGuard
+@dataclass(frozen=True)
+class ModelOptions:
+    """Settings of the local linear delay models that an analysis fits.
 
-    data = reg.fit_X_
-    key = (id(data), data.shape, data[0].tobytes(), data[-1].tobytes(),
-           float(distance_factor), float(range_margin))
-    try:
-        cached = _GUARDS.get(reg)
-    except TypeError:  # not weak-referenceable
-        cached = None
-    if cached is not None and cached[0] == key:
-        return cached[1]
-    if hasattr(reg, "database"):
-        data, targets = reg.database()
-        scaler = reg.x_scaler_
-    else:  # a duck-typed local map without standardisation
-        data, targets, scaler = reg.fit_X_, reg.fit_y_, None
-    guard = SupportGuard(data, targets, distance_factor=distance_factor,
-                         range_margin=range_margin, scaler=scaler)
-    try:
-        _GUARDS[reg] = (key, guard)
-    except TypeError:
-        pass
-    return guard
+    ``n_neighbors=None`` means ``4 (2 m + 1)``: about four points per
+    parameter of the local affine map, enough to average measurement noise
+    out of the fit while keeping the neighbourhood local.
+    """
+
+    n_neighbors: int | None = None
+    ridge: float = 1e-3
+    theiler_window: int = 2
+
+    def neighbours(self, m):
+        """Neighbourhood size for window length ``m``."""
+        return 4 * (2 * m + 1) if self.n_neighbors is None else int(self.n_neighbors)
+
+
+def fit_delay_model(series, m, tau, options=None):
+    """Fit ``Pipeline(TwoWindowEmbedding(m, tau), LocalLinearDelayMap)`` on one series.
+
+    The one place where the analysis, the faithful-model search and the demo
+    fit their models (so each ``(m, tau)`` model is fitted once per analysis).
+    """
+    options = ModelOptions() if options is None else options
+    X, y = lagged_windows(series, required_lags(m, tau))
+    model = make_pipeline(
+        TwoWindowEmbedding(m=m, tau=tau),
+        LocalLinearDelayMap(n_neighbors=options.neighbours(m), ridge=options.ridge,
+                            theiler_window=options.theiler_window),
+    )
+    return model.fit(X, y)

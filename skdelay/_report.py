@@ -269,8 +269,6 @@ def fig_collapse(demo):
 
 def write_demo_report(demo, path):
     """Write the demo's report: the paper's table, the collapse, then every analysis."""
-    from ._analysis import PAPER_TABLE
-
     table = demo.table.copy()
     sections = [
         ("The paper's table on the laser-like data",
@@ -280,7 +278,7 @@ def write_demo_report(demo, path):
            "too short to close the Kaplan-Yorke sum). m_d: minimal faithful window "
            "length.</p>"), table,
           "<p>For comparison, Bünner et al. (CO<sub>2</sub> laser experiment, 1/ms):</p>",
-          PAPER_TABLE]),
+          demo.paper]),
         ("Rescaled-spectrum collapse", [_safe(fig_collapse, demo)]),
     ]
     for delay, res in demo.results.items():

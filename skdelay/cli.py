@@ -1,7 +1,7 @@
 """The ``skdelay`` command: analyze, demo, gap and simulate.
 
 A thin shell over :func:`skdelay._analysis.analyze_series`,
-:func:`skdelay._analysis.run_demo`, :func:`skdelay.gap.diagnose_gap` and the
+:func:`skdelay._demo.run_demo`, :func:`skdelay.gap.diagnose_gap` and the
 simulators.  Each subcommand first *prepares* (parses the arguments, reads and
 checks the input, checks the output path) and then *runs*; a problem found
 while preparing is a usage/input error (exit status 2), one while running is
@@ -285,7 +285,7 @@ def _prepare_analyze(args):
 
 
 def _prepare_demo(args):
-    from . import _analysis
+    from . import _demo
     from ._io import check_output_directory
     from .datasets import LASER_DELAYS
 
@@ -303,7 +303,7 @@ def _prepare_demo(args):
     def run():
         say = _progress(args)
         start = time.perf_counter()
-        demo = _analysis.run_demo(
+        demo = _demo.run_demo(
             delays=delays, n_samples=args.n_samples, n_jobs=args.n_jobs,
             random_state=args.seed, verbose=0 if args.quiet else 10, progress=say,
         )

@@ -6,6 +6,10 @@ delay, so the bytes are always the same), and caches it in the user's cache
 folder: ``$SKDELAY_DATA`` if set, else ``~/.cache/skdelay``.  Files are
 written atomically (temporary file + ``os.replace``), so an interrupted or
 concurrent generation never leaves a half-written file behind.
+
+:func:`henon` and :func:`lorenz` give reference series *without* delay, whose
+textbook values (Hénon D2 ≈ 1.21, Lorenz lambda_1 ≈ 0.906) check the classic
+Takens-style tools.
 """
 
 from __future__ import annotations
@@ -19,7 +23,10 @@ from sklearn.utils import Bunch
 
 from ._atomic import atomic_path
 from ._checks import check_positive_int
+from ._testing_maps import henon, lorenz
 from .systems import CO2LaserFeedback, measure
+
+__all__ = ["LASER_DELAYS", "data_home", "henon", "load_laser", "load_laser_all", "lorenz"]
 
 #: delays (microseconds = samples) of the three data sets of the paper
 LASER_DELAYS = (50, 150, 400)

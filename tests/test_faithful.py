@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from skdelay._faithful import THRESHOLDS
+from skdelay._faithful import CRITERIA, FaithfulnessResult, collapse_step
+from skdelay._model import ModelOptions
 from skdelay.dynamics import minimal_embedding
 
 
@@ -11,57 +12,108 @@ from skdelay.dynamics import minimal_embedding
 def mg17():
     from skdelay.systems import MackeyGlass, measure
 
-    x = MackeyGlass(tau=17.0).simulate(20_000, random_state=0)
+    x = MackeyGlass(tau=17.0).simulate(40_000, random_state=0)
     return measure(x, noise=0.005, random_state=1)
 
 
 @pytest.fixture(scope="module")
-def table(mg17):
-    return minimal_embedding(mg17, tau=17, m_max=4, n_steps=10_000, random_state=0)
+def result(mg17):
+    return minimal_embedding(mg17, tau=17, m_max=4, n_steps=8000, n_runs=3, random_state=0)
 
 
-def test_table_layout(table):
-    tab, _m_d = table
+def test_result_holds_everything_it_computed(result):
+    assert isinstance(result, FaithfulnessResult)
+    tab, m_d = result  # unpacks as (table, m_d)
     assert list(tab.index) == [1, 2, 3, 4] and tab.index.name == "m"
-    for col in ("tau", "bounded", "hist_distance", "hist_ref", "spectrum_distance",
-                "spectrum_ref", "chi", "chi_ref", "lambda_1", "d_ky", "h_ks", "n_positive",
-                "lyap_change", "faithful"):
-        assert col in tab
-    assert (tab["tau"] == 17).all() and tab["bounded"].all()
-    assert tab.loc[4, "lyap_change"] == 0.0
+    for c in CRITERIA:
+        assert {c, f"{c}_band", f"{c}_pass"} <= set(tab.columns)
+    assert (tab["tau"] == 17).all()
+    assert set(result.models) == set(result.runs) == set(result.spectra) == {1, 2, 3, 4}
+    assert all(len(r) == 3 and r[0].size == 8000 for r in result.runs.values())
+    # the spectra in the table are the returned ones, not recomputed
+    assert tab.loc[3, "lambda_1"] == result.spectra[3].exponents[0]
+    assert tab.loc[4, "lyapunov"] == 0.0
 
 
-def test_scalar_window_is_not_faithful_but_m2_to_4_are_close(table):
-    tab, m_d = table
+def test_scalar_window_is_not_faithful_but_m2_to_4_are(result):
+    tab, m_d = result
+    print(tab.drop(columns="status").round(4).to_string())  # the runs behind the verdict
     # m = 1 distorts the invariant measure and roughly doubles lambda_1 of Mackey-Glass
-    assert tab.loc[1, "hist_distance"] > THRESHOLDS["histogram"] * tab.loc[1, "hist_ref"]
-    assert tab.loc[1, "chi"] > 2 * tab.loc[1, "chi_ref"]
-    assert tab.loc[1, "lyap_change"] > 0.5
-    assert not tab.loc[1, "faithful"]
-    # m >= 2: data-like histogram, cross-prediction close to chi(X, X), lambda_1 ~ 0.0052
+    assert tab.loc[1, "histogram"] > tab.loc[1, "histogram_band"]
+    assert tab.loc[1, "chi"] > 2 * tab.loc[1, "chi_band"]
+    assert not tab.loc[1, "faithful"] and tab.loc[1, "status"].startswith("not faithful")
+    # m >= 2: every distance within the data-vs-data band, lambda_1 ~ 0.0052 per step
     for m in (2, 3, 4):
-        assert tab.loc[m, "hist_distance"] < 2 * tab.loc[m, "hist_ref"]
-        assert tab.loc[m, "chi"] < 1.5 * tab.loc[m, "chi_ref"]
+        assert tab.loc[m, "faithful"], tab.loc[m, "status"]
         assert 0.0035 < tab.loc[m, "lambda_1"] < 0.0065
         assert 1.9 < tab.loc[m, "d_ky"] < 2.3
-    assert m_d in (2, 3, 4)
-    assert tab.loc[m_d, "faithful"] and not tab.loc[:m_d - 1, "faithful"].any()
+    assert m_d == 2
+
+
+def test_bands_come_from_data_segment_pairs(result):
+    tab, _ = result
+    # one band per criterion, the same for every m, and of the order of a data-vs-data
+    # Hellinger distance of 8000-sample stretches (a few per cent)
+    for c in ("histogram", "spectrum", "chi"):
+        assert tab[f"{c}_band"].nunique() == 1
+    assert 0.005 < tab["histogram_band"].iloc[0] < 0.15
+
+
+def _noisy_linear_delay_process(n=30_000, tau=12, seed=3):
+    # a noise-driven *stable* delay process: its deterministic model decays to the fixed
+    # point 0, so every free run collapses while the data never go quiet
+    rng = np.random.default_rng(seed)
+    s = np.zeros(n)
+    for t in range(tau, n - 1):
+        s[t + 1] = 0.5 * s[t] - 0.3 * s[t + 1 - tau] + rng.standard_normal()
+    return s[1000:]
+
+
+def test_collapsing_runs_are_never_faithful():
+    s = _noisy_linear_delay_process()
+    res = minimal_embedding(s, tau=12, m_min=1, m_max=2, n_steps=4000, n_runs=2,
+                            model=ModelOptions(n_neighbors=60), random_state=0)
+    for m in (1, 2):
+        assert not res.table.loc[m, "faithful"]
+        assert "collapsed onto a fixed point" in res.table.loc[m, "status"]
+        assert np.isfinite(res.table.loc[m, "collapsed_at"])
+    assert res.m_d is None and "m=2" in res.reason
+
+
+def test_collapse_detector_fixed_point_and_periodic_orbit(mg17):
+    data = np.asarray(mg17)
+    decay = data[:6000] * np.exp(-np.arange(6000) / 500.0)
+    step, kind = collapse_step(decay, data, window=200)
+    assert kind == "fixed point" and 200 <= step < 3000  # e-folding time 500
+    cycle = np.sin(2 * np.pi * np.arange(8000) / 50.0) * data.std() + data.mean()
+    assert collapse_step(cycle, data, window=200) == (4000, "periodic orbit")
+    assert collapse_step(data[10_000:18_000], data, window=200) is None
+
+
+def test_faithful_at_m_implies_faithful_from_m_on(mg17):
+    tab, m_d = minimal_embedding(mg17[:20_000], tau=17, m_min=1, m_max=3, n_steps=4000,
+                                 n_runs=2, random_state=5)
+    if m_d is not None:
+        assert tab.loc[m_d:, "faithful"].all()
+        assert m_d == tab.index.min() or not tab.loc[m_d - 1:, "faithful"].all()
 
 
 def test_tau_per_m_and_errors(mg17):
     with pytest.raises(ValueError, match="no delay for m"):
         minimal_embedding(mg17, tau={1: 17}, m_max=2)
-    with pytest.raises(ValueError, match="unknown threshold"):
-        minimal_embedding(mg17, tau=17, m_max=2, thresholds={"hist": 1.0})
     with pytest.raises(ValueError, match="needs at least"):
         minimal_embedding(mg17[:300], tau=100, m_max=2)
-    tab, _ = minimal_embedding(mg17[:8000], tau={1: 16, 2: 17}, m_max=2, n_steps=3000,
-                               random_state=1)
+    with pytest.raises(ValueError, match="four disjoint data segments"):
+        minimal_embedding(mg17[:8000], tau=17, m_max=2, n_steps=3000)
+    with pytest.raises(TypeError, match="ModelOptions"):
+        minimal_embedding(mg17[:8000], tau=17, m_max=2, model={"n_neighbors": 10})
+    tab, _ = minimal_embedding(mg17[:12_000], tau={1: 16, 2: 17}, m_max=2, n_steps=3000,
+                               n_runs=2, random_state=1)
     assert tab["tau"].tolist() == [16, 17]
     assert np.isfinite(tab["chi"]).all()
 
 
 def test_default_delays_from_forecast_error_scan(mg17):
-    tab, _ = minimal_embedding(mg17[:10_000], tau_grid=range(10, 25), m_min=2, m_max=3,
-                               n_steps=3000, random_state=0)
+    tab, _ = minimal_embedding(mg17[:12_000], tau_grid=range(8, 28), m_min=2, m_max=3,
+                               n_steps=3000, n_runs=2, random_state=0)
     assert tab["tau"].between(16, 18).all()
