@@ -29,6 +29,17 @@ _GROWTH_LIMIT = 1e6
 
 
 @njit(cache=True)
+def _reflect(v, y, j):
+    """Apply the Householder reflection ``I - 2 v v^T`` (``v`` zero before ``j``) to ``y``."""
+    w = 0.0
+    for i in range(j, v.size):
+        w += v[i] * y[i]
+    w *= 2.0
+    for i in range(j, v.size):
+        y[i] -= w * v[i]
+
+
+@njit(cache=True)
 def _householder_qr_rows(vec, logs_out):
     """In-place thin QR of the ``D x k`` matrix whose *columns* are the rows of ``vec``.
 
@@ -59,13 +70,7 @@ def _householder_qr_rows(vec, logs_out):
             for i in range(j, dim):
                 v[i] /= vn
         for c in range(j + 1, k):
-            y = vec[c]
-            w = 0.0
-            for i in range(j, dim):
-                w += v[i] * y[i]
-            w *= 2.0
-            for i in range(j, dim):
-                y[i] -= w * v[i]
+            _reflect(v, vec[c], j)
     # Q e_c = H_0 ... H_{k-1} e_c
     for c in range(k):
         y = vec[c]
@@ -73,13 +78,7 @@ def _householder_qr_rows(vec, logs_out):
             y[i] = 0.0
         y[c] = 1.0
         for j in range(min(c, k - 1), -1, -1):
-            v = refl[j]
-            w = 0.0
-            for i in range(j, dim):
-                w += v[i] * y[i]
-            w *= 2.0
-            for i in range(j, dim):
-                y[i] -= w * v[i]
+            _reflect(refl[j], y, j)
 
 
 @njit(cache=True)

@@ -24,6 +24,7 @@ def result(mg17):
 def test_result_holds_everything_it_computed(result):
     assert isinstance(result, FaithfulnessResult)
     tab, m_d = result  # unpacks as (table, m_d)
+    assert m_d == result.m_d
     assert list(tab.index) == [1, 2, 3, 4] and tab.index.name == "m"
     for c in CRITERIA:
         assert {c, f"{c}_band", f"{c}_pass"} <= set(tab.columns)

@@ -16,7 +16,7 @@ PACKAGE = ROOT / "skdelay"
 def _module_name(path):
     parts = path.relative_to(ROOT).with_suffix("").parts
     name = ".".join(parts)
-    return name[: -len(".__init__")] if name.endswith(".__init__") else name
+    return name.removesuffix(".__init__")
 
 
 def _imports(path, name, modules):

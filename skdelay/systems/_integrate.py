@@ -203,6 +203,31 @@ def rk4_update(x, dt, k):
 
 
 @njit(cache=True)
+def ring_stages(tag, x, ring, slot, l, starts, weights, p, dt, k, xs, xd):
+    """The RK4 stages of one ring-buffer step (shared by the integrator and the tangent run).
+
+    Reads the delayed value at the stage times (``xd[0..3]``; the two half-step
+    stages share one), stores the current ``x_l`` in ``ring[slot]`` (after the
+    reads: that slot held the oldest value, which a stencil may still need)
+    and evaluates the stages ``xs`` / slopes ``k``; the caller applies
+    :func:`rk4_update` and moves to :func:`next_slot`.
+    """
+    cur = x[l]
+    xd[0] = delayed(cur, ring, slot, starts, weights, 0)
+    xd[1] = delayed(cur, ring, slot, starts, weights, 1)
+    xd[2] = xd[1]
+    xd[3] = delayed(cur, ring, slot, starts, weights, 2)
+    ring[slot] = cur
+    rk4_stages(tag, x, xd[0], xd[1], xd[3], p, dt, k, xs)
+
+
+@njit(cache=True)
+def next_slot(slot, m_ring):
+    """Ring position of the next step."""
+    return 0 if slot + 1 == m_ring else slot + 1
+
+
+@njit(cache=True)
 def integrate_chunk(tag, x, ring, counter, l, p, p0, dp, tau0, dtau, drift, rec_start, rec_len,
                     dt, every, noise, noise_idx, out):
     """Advance ``len(out) * every`` steps, recording ``x_l`` before every ``every`` steps.
@@ -220,6 +245,7 @@ def integrate_chunk(tag, x, ring, counter, l, p, p0, dp, tau0, dtau, drift, rec_
     m_ring = ring.shape[0]
     k = np.empty((4, d))
     xs = np.empty((4, d))
+    xd = np.empty(4)
     n = counter[0]
     slot = n % m_ring
     use_noise = noise.shape[0] > 0
@@ -239,21 +265,14 @@ def integrate_chunk(tag, x, ring, counter, l, p, p0, dp, tau0, dtau, drift, rec_
                 for q in range(p.shape[0]):
                     p[q] = p0[q] + dp[q] * frac
                 stencils((tau0 + dtau * frac) / dt, starts, weights)
-            cur = x[l]
-            xd0 = delayed(cur, ring, slot, starts, weights, 0)
-            xdh = delayed(cur, ring, slot, starts, weights, 1)
-            xd1 = delayed(cur, ring, slot, starts, weights, 2)
-            ring[slot] = cur
-            rk4_stages(tag, x, xd0, xdh, xd1, p, dt, k, xs)
+            ring_stages(tag, x, ring, slot, l, starts, weights, p, dt, k, xs, xd)
             rk4_update(x, dt, k)
             if use_noise:
                 for q in range(noise_idx.shape[0]):
                     x[noise_idx[q]] += noise[step, q]
             step += 1
             n += 1
-            slot += 1
-            if slot == m_ring:
-                slot = 0
+            slot = next_slot(slot, m_ring)
     counter[0] = n
     for q in range(d):
         if not np.isfinite(x[q]):

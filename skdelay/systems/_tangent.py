@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ._integrate import delayed, rk4_stages, rk4_update, system_jac
+from ._integrate import delayed, next_slot, ring_stages, rk4_update, system_jac
 
 
 @njit(cache=True)
@@ -84,12 +84,7 @@ def tangent_run(tag, x, ring, counter, l, p, dt, starts, weights, V, W, n_qr, qr
     slot = n % m_ring
     for _ in range(n_qr):
         for _ in range(qr_every):
-            cur = x[l]
-            xd[0] = delayed(cur, ring, slot, starts, weights, 0)
-            xd[1] = delayed(cur, ring, slot, starts, weights, 1)
-            xd[2] = xd[1]
-            xd[3] = delayed(cur, ring, slot, starts, weights, 2)
-            rk4_stages(tag, x, xd[0], xd[1], xd[3], p, dt, ks, xs)
+            ring_stages(tag, x, ring, slot, l, starts, weights, p, dt, ks, xs, xd)
             if k_vec > 0:
                 for s in range(4):
                     system_jac(tag, xs[s], xd[s], p, jx[s], jd[s])
@@ -113,15 +108,10 @@ def tangent_run(tag, x, ring, counter, l, p, dt, starts, weights, V, W, n_qr, qr
                             acc += jx[s, i, j] * dx[j]
                         dks[s, i] = acc
                 Wv[slot] = cv
-                for i in range(d):
-                    V[v, i] += dt / 6.0 * (dks[0, i] + 2.0 * dks[1, i] + 2.0 * dks[2, i]
-                                           + dks[3, i])
-            ring[slot] = cur
+                rk4_update(V[v], dt, dks)
             rk4_update(x, dt, ks)
             n += 1
-            slot += 1
-            if slot == m_ring:
-                slot = 0
+            slot = next_slot(slot, m_ring)
         counter[0] = n
         for i in range(d):
             if not np.isfinite(x[i]):
