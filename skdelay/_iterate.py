@@ -11,6 +11,7 @@ or outside the data range by a margin.
 
 from __future__ import annotations
 
+import numbers
 import warnings
 import weakref
 
@@ -22,8 +23,8 @@ from ._kdtree import build_tree, query_knn
 from ._model import resolve_model
 from ._neighbours import RADIUS_CAP, Standardiser, fit_neighbourhood
 
-__all__ = ["ModelEscapeError", "ModelEscapeWarning", "Trajectory", "iterate", "run_model",
-           "support_guard"]
+__all__ = ["ModelEscapeError", "ModelEscapeWarning", "OffSupportWarning", "Trajectory",
+           "iterate", "off_support_fraction", "run_model", "support_guard"]
 
 #: Cached support guards of fitted maps (a guard costs a tree build and a probe search).
 _GUARDS = weakref.WeakKeyDictionary()
@@ -37,6 +38,10 @@ ESCAPE_REASONS = {
 
 class ModelEscapeWarning(UserWarning):
     """A free-running model left the support of its data; the run was cut there."""
+
+
+class OffSupportWarning(UserWarning):
+    """A series given to a model lies (partly) outside the support of the model's data."""
 
 
 class ModelEscapeError(ValueError):
@@ -144,6 +149,27 @@ class SupportGuard:
 
 
 @njit(cache=True)
+def nearest_distances(data, tree, queries):
+    """Distance of each row of ``queries`` to its nearest database vector."""
+    out = np.empty(queries.shape[0])
+    best_d = np.empty(1)
+    best_i = np.empty(1, dtype=np.int64)
+    stack = np.empty(256, dtype=np.int64)
+    for q in range(queries.shape[0]):
+        query_knn(data, tree, queries[q], 1, best_d, best_i, stack)
+        out[q] = np.sqrt(best_d[0])
+    return out
+
+
+def off_support_fraction(guard, vectors, *, n_probe=2000, random_state=0):
+    """Fraction of ``vectors`` (data units) farther from the database than the guard allows."""
+    rng = np.random.default_rng(random_state)
+    rows = rng.choice(len(vectors), size=min(len(vectors), n_probe), replace=False)
+    q = np.ascontiguousarray(guard.scaler.forward(np.asarray(vectors)[np.sort(rows)]))
+    return float(np.mean(nearest_distances(guard.data, guard.tree, q) > guard.max_distance))
+
+
+@njit(cache=True)
 def _nearest_other(data, tree, probe):
     out = np.empty(probe.size)
     best_d = np.empty(2)
@@ -211,6 +237,19 @@ def support_guard(reg, *, distance_factor, range_margin):
     except TypeError:
         pass
     return guard
+
+
+def check_finite(value, name, *, minimum=None, strict=False):
+    """``value`` as a finite float, at least (or, ``strict``, above) ``minimum``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise TypeError(f"{name} must be a real number, got {value!r}.")
+    value = float(value)
+    bad = not np.isfinite(value) or (minimum is not None and (
+        value <= minimum if strict else value < minimum))
+    if bad:
+        bound = "" if minimum is None else f" {'>' if strict else '>='} {minimum:g}"
+        raise ValueError(f"{name} must be a finite number{bound}, got {value!r}.")
+    return value
 
 
 def check_tau(tau, model):
@@ -291,9 +330,9 @@ def iterate(model, history, n_steps, *, tau=None, noise=0.0, random_state=None,
         raise ValueError(f"on_escape must be 'warn', 'raise' or 'ignore', got {on_escape!r}.")
     dim = mdl.state_dim(tau)
     hist = check_series(history, name="history", min_length=dim, allow_constant=True)
-    noise = float(noise)
-    if not noise >= 0:
-        raise ValueError(f"noise must be a non-negative standard deviation, got {noise}.")
+    noise = check_finite(noise, "noise", minimum=0.0)
+    check_finite(escape_distance, "escape_distance", minimum=0.0, strict=True)
+    check_finite(range_margin, "range_margin", minimum=0.0)
     kicks = np.zeros(n_steps)
     if noise > 0:
         kicks = noise * check_random_state(random_state).standard_normal(n_steps)

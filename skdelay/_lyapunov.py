@@ -8,10 +8,18 @@ data) and the QR iteration from :mod:`skdelay._tangent`.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from ._checks import check_positive_int, check_series
-from ._iterate import check_tau
+from ._iterate import (
+    OffSupportWarning,
+    check_finite,
+    check_tau,
+    off_support_fraction,
+    support_guard,
+)
 from ._model import resolve_model, self_query_index
 from ._spectrum import LyapunovSpectrum
 from ._tangent import exponents_from_logs, tangent_qr
@@ -21,6 +29,10 @@ __all__ = ["covering_spectrum", "lyapunov_spectrum"]
 
 #: Rows of Jacobians computed per batch (bounds the (rows, k, 2m) neighbour gather).
 CHUNK_ROWS = 1 << 16
+#: Largest fraction of a foreign series' vectors allowed off the model's support before a
+#: warning: a model run stays within it by construction (escapes are cut), so anything
+#: beyond a few per cent is a different signal (shifted, rescaled, another system).
+OFF_SUPPORT_LIMIT = 0.05
 
 
 def lyapunov_spectrum(model, series, *, n_exponents=None, n_steps=None, sample_dt=1.0,
@@ -142,9 +154,12 @@ def lyapunov_spectrum(model, series, *, n_exponents=None, n_steps=None, sample_d
     if getattr(mdl.regressor, "order", 1) == 0:
         raise ValueError("the Lyapunov spectrum needs a local linear model (order=1); a local "
                          "constant model (order=0) has no Jacobian.")
-    sample_dt = float(sample_dt)
-    if not sample_dt > 0:
-        raise ValueError(f"sample_dt must be positive, got {sample_dt}.")
+    sample_dt = check_finite(sample_dt, "sample_dt", minimum=0.0, strict=True)
+    n_blocks = check_positive_int(n_blocks, name="n_blocks", minimum=2)
+    if n_transient is not None:
+        n_transient = check_positive_int(n_transient, name="n_transient", minimum=0)
+    if qr_interval is not None:
+        qr_interval = check_positive_int(qr_interval, name="qr_interval")
     min_steps = 4 * n_blocks
     s = check_series(series, name="series", min_length=dim + 1 + min_steps)
     X, _ = lagged_windows(s, dim)
@@ -167,6 +182,16 @@ def lyapunov_spectrum(model, series, *, n_exponents=None, n_steps=None, sample_d
         if qidx is None and exclude_self is True:
             raise ValueError("exclude_self=True but series is not the data the model was "
                              "fitted on (its vectors do not match the model's database).")
+    if qidx is None and hasattr(mdl.regressor, "database"):
+        guard = support_guard(mdl.regressor, distance_factor=5.0, range_margin=0.25)
+        off = off_support_fraction(guard, V)
+        if off > OFF_SUPPORT_LIMIT:
+            warnings.warn(
+                f"{100 * off:.0f} % of the series' vectors lie outside the support of the "
+                "model's data (farther from every database vector than a free run may go): "
+                "the local maps there are extrapolations and the exponents are not the "
+                "model's. Pass the data the model was fitted on, or a run of the model.",
+                OffSupportWarning, stacklevel=2)
     jac = np.empty_like(V)
     for lo in range(0, n, CHUNK_ROWS):
         sl = slice(lo, min(n, lo + CHUNK_ROWS))

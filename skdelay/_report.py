@@ -179,6 +179,53 @@ def _row_table(result, scale=1.0, unit="1/time unit"):
     return pd.Series(rows, name="value").rename_axis("quantity")
 
 
+#: A revival within this many samples (or this fraction of the delay) of the delay is
+#: "at the delay"; up to RESPONSE_FRACTION beyond it, "slightly beyond" (the loop's
+#: response time: 3-25 % in the paper's laser and in Mackey-Glass).
+AT_DELAY_SAMPLES, AT_DELAY_FRACTION, RESPONSE_FRACTION = 2, 0.03, 0.3
+
+
+def faithful_sentence(result):
+    """The faithful-model verdict in one sentence, following the table."""
+    if result.minimal_m is not None:
+        return (f"Minimal faithful window length m_d = {result.minimal_m}: every model from "
+                f"m = {result.minimal_m} on reproduces the data.")
+    return f"No model up to m = {max(result.runs or [result.m])} is faithful: " \
+        f"{result.minimal_m_reason or 'see the table'}."
+
+
+def delay_sentence(result):
+    """What the forecast-error dip says about the delay, conditioned on its significance."""
+    row = result.delays.loc[result.m]
+    if bool(row.get("significant", True)):
+        return (f"The forecast-error dip of m = {result.m} gives the delay "
+                f"{row['delay']:.1f} +- {row['delay_error']:.1f} samples; the model uses "
+                f"tau = {result.delay}.")
+    return (f"The forecast error of m = {result.m} shows no significant dip "
+            f"({row.get('reason', '')}): the data cannot tell the delay; the model uses the "
+            f"grid minimum tau = {result.delay}.")
+
+
+def revival_sentence(name, lag, result):
+    """Where a correlation revival lies relative to the delay, in words that fit the numbers."""
+    if lag is None:
+        return f"The {name} has no revival in the scanned lags."
+    delay = float(result.delays.loc[result.m, "delay"])
+    if not bool(result.delays.loc[result.m].get("significant", True)):
+        return f"Its strongest {name} revival lies at lag {lag}."
+    diff = lag - delay
+    if abs(diff) <= max(AT_DELAY_SAMPLES, AT_DELAY_FRACTION * delay):
+        where = "at the delay"
+    elif 0 < diff <= RESPONSE_FRACTION * delay:
+        where = f"{diff:.0f} samples beyond the delay (the loop's response time)"
+    elif diff > 0:
+        where = (f"{lag / delay:.1f} times the delay: too far beyond it to be the delay's "
+                 "revival")
+    else:
+        where = f"{-diff:.0f} samples before the delay: an internal oscillation, not the delay"
+    return f"The strongest {name} revival, at lag {lag}, lies {where}."
+
+
 def _safe(fn, *args):
     """A figure, or a short note when it cannot be drawn (the report is still written)."""
     try:
@@ -197,11 +244,10 @@ def analysis_sections(result, *, scale=1.0, unit="1/time unit", prefix=""):
     intro = (
         f"<p>{html.escape(result.name)}: {result.series.size} samples, sampling interval "
         f"{dt:g}. Delays in samples; exponents per {html.escape(unit.split('/', 1)[-1])}. "
-        f"Strongest revival of the autocorrelation: lag {rev.get('acf_strongest')}, of the "
-        f"mutual information: lag {rev.get('mi_strongest')} (first revivals: "
-        f"{rev.get('acf_revival')}, {rev.get('mi_revival')}). For delay systems the strong "
-        "revival lies slightly beyond the delay (by the response time); the forecast-error "
-        f"dip gives the delay itself: {result.delay}.</p>"
+        f"{html.escape(delay_sentence(result))} "
+        f"{html.escape(revival_sentence('autocorrelation', rev.get('acf_strongest'), result))} "
+        f"{html.escape(revival_sentence('mutual information', rev.get('mi_strongest'), result))}"
+        "</p>"
     )
     items = [
         (f"{prefix}Summary", [intro, _row_table(result, scale, unit)]),
@@ -210,10 +256,11 @@ def analysis_sections(result, *, scale=1.0, unit="1/time unit", prefix=""):
         (f"{prefix}Lyapunov spectra, Kaplan-Yorke dimension, KS entropy",
          [_safe(fig_spectra, result, scale, unit)]),
         (f"{prefix}Validation of the iterated models",
-         [("<p>Free runs of each model against the data. A model is faithful when it stays "
-          "bounded and its histogram, power spectrum, cross-prediction error and Lyapunov "
-          "spectrum agree with the data within the data's own sampling spread "
-          "(see <code>skdelay.dynamics.minimal_embedding</code>).</p>"),
+         [(f"<p>{html.escape(faithful_sentence(result))} Each model ran from several "
+           "histories; a model is faithful when no run escapes or collapses and its "
+           "histogram, power spectrum and cross-prediction distances to the data lie within "
+           "the band of the same distances between stretches of the data (columns "
+           "<code>*_band</code>), and its Lyapunov spectrum has converged in m.</p>"),
           _safe(fig_series, result, dt), _safe(fig_distributions, result, dt), val,
           _safe(fig_space_time, result)]),
     ]

@@ -17,7 +17,13 @@ i.e. about the paper's ``tau + m``).  This module
 from __future__ import annotations
 
 from ._faithful import FaithfulnessResult, minimal_embedding
-from ._iterate import ModelEscapeError, ModelEscapeWarning, Trajectory, iterate
+from ._iterate import (
+    ModelEscapeError,
+    ModelEscapeWarning,
+    OffSupportWarning,
+    Trajectory,
+    iterate,
+)
 from ._lyapunov import lyapunov_spectrum
 from ._spectrum import (
     LyapunovSpectrum,
@@ -32,6 +38,7 @@ __all__ = [
     "LyapunovSpectrum",
     "ModelEscapeError",
     "ModelEscapeWarning",
+    "OffSupportWarning",
     "Trajectory",
     "dimension_density",
     "iterate",

@@ -11,6 +11,7 @@ from skdelay._windows import lagged_windows
 from skdelay.dynamics import (
     LyapunovSpectrum,
     dimension_density,
+    iterate,
     kaplan_yorke_dimension,
     ks_entropy,
     lyapunov_spectrum,
@@ -165,3 +166,54 @@ def test_reexported_summaries():
     assert ks_entropy(lam) == pytest.approx(0.02)
     assert dimension_density(24.0, 400.0) == pytest.approx(0.06)
     np.testing.assert_allclose(rescale_spectrum(lam, 100)[1], [2.0, 0.0, -5.0])
+
+
+# --- bad input (issue: hardening) --------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def mg_model():
+    from skdelay.systems import MackeyGlass
+
+    x = MackeyGlass(tau=17.0).simulate(6000, random_state=0)
+    return _fit(x, 2, 17, 20), x
+
+
+@pytest.mark.parametrize(("kwargs", "match"), [
+    ({"qr_interval": 0}, "qr_interval"), ({"qr_interval": -1}, "qr_interval"),
+    ({"n_blocks": 0}, "n_blocks"), ({"n_transient": -5}, "n_transient"),
+    ({"sample_dt": float("inf")}, "sample_dt"), ({"sample_dt": 0.0}, "sample_dt"),
+])
+def test_lyapunov_spectrum_rejects_invalid_parameters(mg_model, kwargs, match):
+    model, x = mg_model
+    with pytest.raises(ValueError, match=match):
+        lyapunov_spectrum(model, x, n_exponents=2, **kwargs)
+
+
+@pytest.mark.parametrize(("kwargs", "match"), [
+    ({"escape_distance": float("nan")}, "escape_distance"), ({"escape_distance": 0}, "escape"),
+    ({"noise": -1.0}, "noise"), ({"range_margin": float("inf")}, "range_margin"),
+])
+def test_iterate_rejects_invalid_parameters(mg_model, kwargs, match):
+    model, x = mg_model
+    with pytest.raises(ValueError, match=match):
+        iterate(model, x[:100], 10, **kwargs)
+
+
+def test_spectrum_along_a_foreign_series_warns(mg_model):
+    from skdelay.dynamics import OffSupportWarning
+
+    model, x = mg_model
+    with pytest.warns(OffSupportWarning, match="outside the support"):
+        lyapunov_spectrum(model, x + 3 * x.std(), n_exponents=2)
+
+
+@pytest.mark.parametrize("scale", [1e-200, 1e200])
+def test_runs_and_spectra_do_not_depend_on_scale(scale):
+    from skdelay.systems import MackeyGlass
+
+    x = MackeyGlass(tau=17.0).simulate(6000, random_state=0)
+    ref, big = _fit(x, 2, 17, 20), _fit(x * scale, 2, 17, 20)
+    np.testing.assert_allclose(iterate(big, x[:100] * scale, 500) / scale,
+                               iterate(ref, x[:100], 500), rtol=1e-9)
+    np.testing.assert_allclose(lyapunov_spectrum(big, x * scale, n_exponents=3).exponents,
+                               lyapunov_spectrum(ref, x, n_exponents=3).exponents, rtol=1e-9)
