@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 from scipy.signal import find_peaks
 
-from ._checks import check_series
+from ._checks import check_positive_int, check_series
 from ._correlation import autocorrelation, mutual_information, revival_peak
 from ._dips import locate_dips
 from ._embedding import required_lags
@@ -29,6 +29,7 @@ from ._faithful import minimal_embedding
 from ._io import atomic_directory
 from ._model import ModelOptions
 from ._report import write_analysis_report
+from ._sampling import sampling_step
 from ._selection import forecast_error_curve
 
 __all__ = [
@@ -159,9 +160,14 @@ class AnalysisResult:
     name : str
         Label of the series (file name).
     sample_dt : float
-        Sampling interval (time unit of all exponents: per this unit).
+        Sampling interval of the analysed series (``step`` times that of the
+        record); exponents are per its time unit.
     series : ndarray
-        The analysed series.
+        The analysed series (every ``step``-th sample of the record); the
+        delays of ``delays`` and ``forecast_error`` are in its samples.
+    step : int
+        Sampling step applied to the record (1: none; see
+        :func:`~skdelay._sampling.sampling_step`).
     revivals : dict
         ``acf`` and ``mi`` curves and the lags of their first revival.
     forecast_error : pandas.DataFrame
@@ -198,6 +204,7 @@ class AnalysisResult:
     minimal_m: int | None
     runs: dict = field(repr=False)
     minimal_m_reason: str = ""
+    step: int = 1
     options: dict = field(default_factory=dict)
     timings: dict = field(default_factory=dict)
 
@@ -217,8 +224,8 @@ class AnalysisResult:
         d_ky = spec.kaplan_yorke_dimension
         tau_time = self.delay * self.sample_dt
         return {
-            "delay": self.delay,
-            "delay_error": float(self.delays.loc[self.m, "delay_error"]),
+            "delay": self.delay * self.step,
+            "delay_error": float(self.delays.loc[self.m, "delay_error"]) * self.step,
             "delay_significant": bool(self.delays.loc[self.m, "significant"]),
             "delay_time": tau_time,
             "m": self.m,
@@ -231,6 +238,7 @@ class AnalysisResult:
             "n_exponents": len(spec),
             "minimal_m": self.minimal_m,
             "minimal_m_reason": self.minimal_m_reason or None,
+            "sampling_step": self.step,
         }
 
     def to_dict(self):
@@ -257,7 +265,11 @@ class AnalysisResult:
         """A few lines for the terminal."""
         r = self.summary_row()
         lines = [
-            f"{self.name}: {self.series.size} samples, dt = {self.sample_dt:g}",
+            f"{self.name}: {self.series.size * self.step} samples, dt = "
+            f"{self.sample_dt / self.step:g}"
+            + ("" if self.step == 1 else
+               f"; oversampled: every {self.step}-th sample analysed (delays below in those "
+               f"coarse samples, the model's delay {r['delay']} in the record's samples)"),
             "delay per m (samples): " + ", ".join(
                 f"m={m}: {row.delay:.1f} +- {row.delay_error:.1f}"
                 + ("" if row.significant else " (no significant dip)")
@@ -364,6 +376,11 @@ class AnalysisOptions:
     n_validation : int
         Most recent samples on which the models are fitted and validated
         (default ``min(n, 200000)``).
+    step : int
+        Analyse every ``step``-th sample; None chooses it from the data
+        (:func:`~skdelay._sampling.sampling_step`: 1 unless the record is so
+        oversampled that the one-step increment drowns in measurement noise).
+        Delay ranges (``tau_min``, ``tau_max``) are in the original samples.
     """
 
     m: tuple = (2, 3, 4, 5)
@@ -378,6 +395,7 @@ class AnalysisOptions:
     n_runs: int = 4
     n_spectrum_steps: int | None = None
     n_validation: int | None = None
+    step: int | None = None
 
     @classmethod
     def quick(cls, **changes):
@@ -481,11 +499,18 @@ def analyze_series(series, options=None, *, quick=False, random_state=0, n_jobs=
     True
     """
     say = progress or quiet
-    s = check_series(series, name="series")
+    raw = check_series(series, name="series")
     opts = _options_from(options, quick, dict(overrides))
-    checked = check_options(s, m=opts.m, tau_min=opts.tau_min, tau_max=opts.tau_max,
-                            sample_dt=opts.sample_dt, n_queries=opts.n_queries)
-    opts = replace(opts, **checked).resolved(s.size)
+    step = sampling_step(raw) if opts.step is None else check_positive_int(opts.step,
+                                                                            name="step")
+    s = raw[::step]
+    if step > 1:
+        say(f"oversampled record: analysing every {step}-th sample")
+    checked = check_options(
+        s, m=opts.m, tau_min=max(1, opts.tau_min // step),
+        tau_max=None if opts.tau_max is None else -(-opts.tau_max // step),
+        sample_dt=opts.sample_dt * step, n_queries=opts.n_queries)
+    opts = replace(opts, **checked, step=step).resolved(s.size)
     ms, dt = opts.m, opts.sample_dt
     taus = range(opts.tau_min, opts.tau_max + 1)
     n = s.size
@@ -530,7 +555,7 @@ def analyze_series(series, options=None, *, quick=False, random_state=0, n_jobs=
     return AnalysisResult(
         name=name, sample_dt=dt, series=s, revivals=revivals, forecast_error=curve,
         delays=dips, m=ms[-1], spectra=faithful.spectra, validation=faithful.table,
-        minimal_m=faithful.m_d, minimal_m_reason=faithful.reason,
+        minimal_m=faithful.m_d, minimal_m_reason=faithful.reason, step=step,
         runs={mm: r[0] for mm, r in faithful.runs.items() if r}, options=opts.to_dict(),
         timings=timings,
     )

@@ -243,7 +243,13 @@ def analysis_sections(result, *, scale=1.0, unit="1/time unit", prefix=""):
     rev = result.revivals
     intro = (
         f"<p>{html.escape(result.name)}: {result.series.size} samples, sampling interval "
-        f"{dt:g}. Delays in samples; exponents per {html.escape(unit.split('/', 1)[-1])}. "
+        f"{dt / result.step:g}. "
+        + ("" if result.step == 1 else
+           f"The record is oversampled (its one-step increment is comparable to the "
+           f"measurement noise): every {result.step}-th sample was analysed, so the delays "
+           f"below are in steps of {dt:g}; the model's delay is {result.delay * result.step} "
+           "samples of the record. ")
+        + f"Delays in samples; exponents per {html.escape(unit.split('/', 1)[-1])}. "
         f"{html.escape(delay_sentence(result))} "
         f"{html.escape(revival_sentence('autocorrelation', rev.get('acf_strongest'), result))} "
         f"{html.escape(revival_sentence('mutual information', rev.get('mi_strongest'), result))}"

@@ -12,7 +12,7 @@ def _result(delay=40.0, significant=True, minimal_m=None, reason=""):
     delays = pd.DataFrame({"delay": [delay], "delay_error": [0.7], "significant": [significant],
                            "reason": ["" if significant else "the dip is 1.2 standard errors deep"]},
                           index=pd.Index([5], name="m"))
-    return SimpleNamespace(delays=delays, m=5, delay=round(delay), minimal_m=minimal_m,
+    return SimpleNamespace(delays=delays, m=5, delay=round(delay), minimal_m=minimal_m, step=1,
                            minimal_m_reason=reason, runs={2: None, 5: None})
 
 

@@ -1,0 +1,93 @@
+"""Is the record oversampled?  Measurement noise against the one-step increment.
+
+When a smooth signal is sampled much faster than it changes, the one-step
+increment ``s[t+1] - s[t]`` is buried in measurement noise: every forecast is
+"the last value", the delayed window cannot improve it, and the
+forecast-error curve is flat at the noise floor (no dip, whatever the delay).
+Taking every ``h``-th sample lets the increment grow (about linearly in ``h``)
+while the noise stays, so the delay becomes visible again.
+
+:func:`noise_and_increments` separates the two from the structure function
+``D(k) = var(s[t+k] - s[t])``: for a smooth signal plus white measurement
+noise of standard deviation ``e``, ``D(k) = 2 e^2 + c k^2 + O(k^4)`` at small
+``k``, so a least-squares fit of ``D`` against ``k^2`` over the first lags gives
+``2 e^2`` as its intercept.  :func:`sampling_step` returns the smallest ``h``
+whose signal increment exceeds :data:`INCREMENT_TO_NOISE` times the noise.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ._checks import check_series
+
+__all__ = ["INCREMENT_TO_NOISE", "MAX_STEP", "noise_and_increments", "sampling_step"]
+
+#: The signal part of the one-step increment must exceed the noise this many times.  A
+#: dip is a dip when it is at least 10 % deep (:data:`skdelay._dips.MIN_RELATIVE_DEPTH`);
+#: at the dip the error is the noise carried through the local map, off it the noise plus
+#: the part of the increment the delayed window would have explained, which is a fraction
+#: of the whole increment -- an increment of twice the noise leaves room for that.
+INCREMENT_TO_NOISE = 2.0
+#: Largest step considered (the delay must still span several coarse samples).
+MAX_STEP = 64
+#: Lags of the structure function fitted for the intercept (quadratic regime).
+_FIT_LAGS = 4
+
+
+def noise_and_increments(series, max_step=MAX_STEP):
+    """Noise level and signal increment per step, from the structure function.
+
+    Returns ``(noise, steps, increments)``: the measurement-noise standard
+    deviation, the steps ``1..max_step`` and the standard deviation of the
+    *signal* part of ``s[t+h] - s[t]`` for each (noise removed).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from skdelay._sampling import noise_and_increments
+    >>> t = np.arange(50_000) * 0.01
+    >>> x = np.sin(t) + 0.01 * np.random.default_rng(0).standard_normal(t.size)
+    >>> noise, steps, inc = noise_and_increments(x, max_step=8)
+    >>> round(noise, 3), bool(inc[0] < noise < inc[7])
+    (0.01, True)
+    """
+    s = check_series(series, name="series", min_length=8 * max_step)
+    steps = np.arange(1, max_step + 1)
+    d = np.array([np.var(s[h:] - s[:-h]) for h in steps])
+    k2 = steps[:_FIT_LAGS].astype(float) ** 2
+    slope, intercept = np.polyfit(k2, d[:_FIT_LAGS], 1)
+    if slope <= 0 or intercept <= 0:  # not smooth on this scale, or no resolvable noise
+        intercept = 0.0 if slope > 0 else min(d[0], 2 * np.var(s)) / 2
+    noise = math.sqrt(max(intercept, 0.0) / 2.0)
+    increments = np.sqrt(np.maximum(d - 2 * noise ** 2, 0.0))
+    return noise, steps, increments
+
+
+def sampling_step(series, *, max_step=MAX_STEP):
+    """Smallest step ``h`` at which the one-step increment clearly exceeds the noise.
+
+    1 for records that are not oversampled (or carry no resolvable noise).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from skdelay._sampling import sampling_step
+    >>> t = np.arange(100_000) * 0.002
+    >>> rng = np.random.default_rng(1)
+    >>> sampling_step(np.sin(t) + 0.01 * rng.standard_normal(t.size))  # 0.0014 per step
+    15
+    >>> sampling_step(np.sin(50 * t) + 0.01 * rng.standard_normal(t.size))
+    1
+    """
+    s = check_series(series, name="series")
+    max_step = int(min(max_step, s.size // 64))
+    if max_step < 2:
+        return 1
+    noise, steps, inc = noise_and_increments(s, max_step=max_step)
+    if noise == 0:
+        return 1
+    ok = np.flatnonzero(inc >= INCREMENT_TO_NOISE * noise)
+    return int(steps[ok[0]]) if ok.size else int(max_step)

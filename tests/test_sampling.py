@@ -1,0 +1,50 @@
+"""Oversampled records: the sampling step is chosen from the data."""
+
+import numpy as np
+import pytest
+
+from skdelay import analyze_series, forecast_error_curve, locate_dips
+from skdelay._sampling import noise_and_increments, sampling_step
+from skdelay.systems import MackeyGlass, measure
+
+
+@pytest.fixture(scope="module")
+def mg_oversampled():
+    # Mackey-Glass tau = 17 sampled every 0.05 (20x the usual step): 340 samples per delay
+    x = MackeyGlass(tau=17.0).simulate(80_000, sample_dt=0.05, random_state=0)
+    return measure(x, noise=0.005, random_state=1)
+
+
+def test_noise_level_from_the_structure_function(mg_oversampled):
+    noise, _, inc = noise_and_increments(mg_oversampled, max_step=16)
+    assert noise == pytest.approx(0.005, rel=0.1)  # measure() normalises to unit std
+    assert inc[0] < 2 * noise < inc[-1]
+
+
+def test_step_one_for_records_that_are_not_oversampled():
+    x = measure(MackeyGlass(tau=17.0).simulate(20_000, random_state=0), noise=0.005,
+                random_state=1)
+    assert sampling_step(x) == 1
+    assert sampling_step(MackeyGlass(tau=17.0).simulate(20_000, random_state=0)) == 1
+
+
+def test_oversampled_record_gets_a_coarser_step_and_the_delay(mg_oversampled):
+    step = sampling_step(mg_oversampled)
+    assert 2 <= step <= 10
+    res = analyze_series(mg_oversampled, m=(2, 3), tau_min=250, tau_max=430, sample_dt=0.05,
+                         quick=True)
+    assert res.step == step
+    row = res.summary_row()
+    assert row["sampling_step"] == step
+    assert abs(row["delay"] - 340) <= step  # within one coarse sample, in record samples
+    assert row["delay_time"] == pytest.approx(17.0, abs=0.05 * step + 1e-9)
+    assert "oversampled" in res.summary()
+
+
+def test_explicit_step_is_used():
+    x = measure(MackeyGlass(tau=17.0).simulate(20_000, random_state=0), noise=0.005,
+                random_state=1)
+    res = analyze_series(x, m=(2, 3), tau_min=8, tau_max=30, quick=True, step=1)
+    assert res.step == 1 and abs(res.summary_row()["delay"] - 17) <= 1
+    with pytest.raises(ValueError, match="step"):
+        analyze_series(x, m=(2,), tau_min=8, tau_max=30, quick=True, step=0)
