@@ -1,9 +1,8 @@
 """Oversampled records: the sampling step is chosen from the data."""
 
-import numpy as np
 import pytest
 
-from skdelay import analyze_series, forecast_error_curve, locate_dips
+from skdelay import analyze_series
 from skdelay._sampling import noise_and_increments, sampling_step
 from skdelay.systems import MackeyGlass, measure
 
