@@ -95,18 +95,24 @@ def self_query_index(reg, V, *, n_probe=16, random_state=0):
 class ModelOptions:
     """Settings of the local linear delay models that an analysis fits.
 
-    ``n_neighbors=None`` means ``4 (2 m + 1)``: about four points per
-    parameter of the local affine map, enough to average measurement noise
-    out of the fit while keeping the neighbourhood local.
+    ``n_neighbors=None`` means ``per_parameter * (2 m + 1)`` points per
+    neighbourhood (the local affine map has ``2 m + 1`` parameters), so one
+    setting serves every ``m``.  The default 4 points per parameter averages
+    measurement noise out of the fit while keeping the neighbourhood local;
+    :func:`~skdelay._model_selection.select_model_options` chooses
+    ``per_parameter`` and ``ridge`` by time-series cross-validation instead.
     """
 
     n_neighbors: int | None = None
     ridge: float = 1e-3
     theiler_window: int = 2
+    per_parameter: float = 4.0
 
     def neighbours(self, m):
         """Neighbourhood size for window length ``m``."""
-        return 4 * (2 * m + 1) if self.n_neighbors is None else int(self.n_neighbors)
+        if self.n_neighbors is not None:
+            return int(self.n_neighbors)
+        return max(2 * m + 2, round(self.per_parameter * (2 * m + 1)))
 
 
 def fit_delay_model(series, m, tau, options=None):
