@@ -13,7 +13,6 @@ directory next to the target and renamed into place at the end.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import re
 import sys
@@ -74,6 +73,34 @@ def _int_at_least(minimum):
         return value
 
     return parse
+
+
+#: numpy's legacy seeding (used by sklearn's check_random_state) takes 0 <= seed < 2**32
+_MAX_SEED = 2**32 - 1
+
+
+def _seed(text):
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer seed, got {text!r}") from None
+    if not 0 <= value <= _MAX_SEED:
+        raise argparse.ArgumentTypeError(
+            f"the seed must be between 0 and 2**32 - 1 = {_MAX_SEED}, got {value}")
+    return value
+
+
+def _n_jobs(text):
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected an integer number of workers (-1 = all cores), got {text!r}") from None
+    if value == 0:
+        # joblib: positive = that many workers, -1 = all cores, -2 = all but one, ...
+        raise argparse.ArgumentTypeError(
+            "0 workers cannot run anything; use 1 (serial), J > 1, or -1 for all cores")
+    return value
 
 
 def parse_m(text):
@@ -143,10 +170,11 @@ def build_parser():
                             help="replace the output directory if it exists (atomically)")
     common_out.add_argument("--quiet", "-q", action="store_true",
                             help="no progress display, only the summary")
-    common_out.add_argument("--n-jobs", type=int, default=None, metavar="J",
+    common_out.add_argument("--n-jobs", type=_n_jobs, default=None, metavar="J",
                             help="parallel workers (joblib; -1 = all cores; default: all "
                                  "cores for big scans)")
-    common_out.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    common_out.add_argument("--seed", type=_seed, default=0,
+                            help="random seed, 0..2**32-1 (default 0)")
 
     an = sub.add_parser(
         "analyze", parents=[common_out],
@@ -230,7 +258,7 @@ def build_parser():
                     help="quantise with a B-bit ADC over the signal range")
     si.add_argument("--dynamical-noise", type=_nonneg_float, default=0.0, metavar="S",
                     help="dynamical noise strength (default 0)")
-    si.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    si.add_argument("--seed", type=_seed, default=0, help="random seed, 0..2**32-1 (default 0)")
     si.add_argument("-o", "--output", default=None, metavar="FILE",
                     help="output file (.npy, .csv or .txt)")
     si.add_argument("--force", action="store_true", help="overwrite FILE if it exists")
@@ -350,7 +378,7 @@ def _prepare_gap(args):
                              f"{', '.join(sorted(EFFECTS))}")
 
     def run():
-        from ._io import atomic_directory
+        from ._io import atomic_directory, write_json
         from .gap import diagnose_gap
 
         say = _progress(args)
@@ -367,10 +395,11 @@ def _prepare_gap(args):
             report.effects.to_csv(tmp / "effects.csv", index=False)
             report.where.to_csv(tmp / "where.csv", index=False)
             (tmp / "summary.txt").write_text(summary + "\n", encoding="utf-8")
-            (tmp / "results.json").write_text(json.dumps({
+            write_json(tmp / "results.json", {
                 "real": str(args.real), "system": system.name, "params": system.params,
                 "sample_dt": args.dt, "best_effect": report.best_effect,
-            }, indent=2, default=float) + "\n", encoding="utf-8")
+            }, reasons={"best_effect": "real and simulated data are indistinguishable "
+                                       "within the sim-vs-sim spread"})
         print(summary)
         print(f"report in {args.out}/report.html")
 
@@ -388,6 +417,8 @@ def _list_systems():
 
 
 def _prepare_simulate(args):
+    from ._atomic import check_writable
+
     if args.list:
         return lambda: print(_list_systems())
     if args.name is None:
@@ -399,25 +430,35 @@ def _prepare_simulate(args):
     out = Path(args.output)
     if out.suffix.lower() not in {".npy", ".csv", ".txt", ".dat"}:
         raise UsageError(f"-o {out}: name the output *.npy, *.csv or *.txt")
-    if out.exists() and not args.force:
-        raise UsageError(f"{out} exists; choose another -o FILE or pass --force to overwrite it")
     if out.is_dir():
         raise UsageError(f"{out} is a directory; give a file name")
+    if out.exists() and not args.force:
+        raise UsageError(f"{out} exists; choose another -o FILE or pass --force to overwrite it")
     if args.bits is not None and args.bits > 32:
         raise UsageError(f"--bits {args.bits} is more than a real ADC has; use 8..24")
     system, drift = _system(args.name, parse_params(args.param))
     if args.n > 50_000_000:
         raise UsageError(f"--n {args.n} is too many samples for one file; use at most 5e7")
+    try:
+        # every check simulate() makes (delay resolution, drift ends, ...) before any work
+        system.check_simulation(args.n, sample_dt=args.dt,
+                                dynamical_noise=args.dynamical_noise, **drift)
+        check_writable(out, what="-o")
+    except (TypeError, ValueError) as exc:
+        raise UsageError(_one_line(exc)) from exc
 
     def run():
         from ._io import write_series
-        from .systems import measure
+        from .systems import DivergenceError, measure
 
-        x = system.simulate(args.n, sample_dt=args.dt, random_state=args.seed,
-                            dynamical_noise=args.dynamical_noise, **drift)
+        try:
+            x = system.simulate(args.n, sample_dt=args.dt, random_state=args.seed,
+                                dynamical_noise=args.dynamical_noise, **drift)
+        except DivergenceError as exc:  # the parameters given are the thing to change
+            raise UsageError(_one_line(exc)) from exc
         if args.noise > 0 or args.bits is not None:
             x = measure(x, noise=args.noise, bits=args.bits, normalise=False,
-                        random_state=args.seed + 1)
+                        random_state=(args.seed + 1) % (_MAX_SEED + 1))
         comment = (f"skdelay simulate {system!r} n={args.n} sample_dt={args.dt} "
                    f"noise={args.noise} bits={args.bits} seed={args.seed}")
         write_series(out, x, name=system.name, comment=comment)
