@@ -10,6 +10,9 @@ import numbers
 
 import numpy as np
 
+#: time stamps may be stored rounded to the microsecond; more jitter than that is irregular
+_INDEX_JITTER_NS = 1_000
+
 
 def check_series(series, *, name="series", min_length=2, allow_constant=False):
     """Return ``series`` as a 1-D float64 array after checking it is usable.
@@ -76,3 +79,62 @@ def check_random_state(random_state):
     from sklearn.utils import check_random_state as _crs
 
     return _crs(random_state)
+
+
+def sample_dt_from_index(series):
+    """Sampling step in seconds of a pandas Series with a time index (None otherwise).
+
+    Parameters
+    ----------
+    series : pandas.Series or pandas.Index
+        A Series indexed by a ``DatetimeIndex`` or ``TimedeltaIndex`` (or such
+        an index itself).  Any other index (e.g. the default ``RangeIndex``)
+        carries no time step: the function returns None and the caller keeps
+        its ``sample_dt``.
+
+    Returns
+    -------
+    float or None
+        The common spacing in seconds.
+
+    Raises
+    ------
+    ValueError
+        Fewer than 2 time stamps, time stamps that are not strictly
+        increasing, or irregular spacing (the methods need a uniform grid).
+
+    Examples
+    --------
+    >>> import numpy as np, pandas as pd
+    >>> from skdelay._checks import sample_dt_from_index
+    >>> s = pd.Series(np.arange(4.0), index=pd.date_range("2024", periods=4, freq="10ms"))
+    >>> sample_dt_from_index(s)
+    0.01
+    """
+    import pandas as pd
+
+    index = series if isinstance(series, pd.Index) else getattr(series, "index", None)
+    if not isinstance(index, (pd.DatetimeIndex, pd.TimedeltaIndex)):
+        return None
+    if index.size < 2:
+        raise ValueError(f"the time index has {index.size} time stamp(s); at least 2 are "
+                         "needed to know the sampling step.")
+    # integer nanoseconds (whatever the index's unit): exact, no float round-off
+    ns = index.as_unit("ns").asi8
+    steps = np.diff(ns)
+    if np.any(steps <= 0):
+        first = int(np.flatnonzero(steps <= 0)[0])
+        raise ValueError(f"the time index is not increasing (at position {first + 1}: "
+                         f"{index[first]} then {index[first + 1]}); sort the series with "
+                         ".sort_index() and drop duplicate time stamps.")
+    step = int(np.median(steps))
+    bad = np.flatnonzero(np.abs(steps - step) > _INDEX_JITTER_NS)
+    if bad.size:
+        i = int(bad[0])
+        raise ValueError(
+            f"the time index is irregular: the step is {pd.Timedelta(step, unit='ns')} but "
+            f"{bad.size} gap(s) differ (first: {pd.Timedelta(int(steps[i]), unit='ns')} after "
+            f"{index[i]}); resample to a uniform grid (e.g. series.resample(...).mean()"
+            ".interpolate()) first."
+        )
+    return step / 1e9  # exact for whole seconds (step * 1e-9 is not)

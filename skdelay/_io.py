@@ -179,7 +179,9 @@ def read_series(path, column=None, *, min_length=2):
     Returns
     -------
     pandas.Series
-        float64 values, named after the column.
+        float64 values, named after the column; indexed by the file's
+        ``DatetimeIndex`` / ``TimedeltaIndex`` when it has one (parquet
+        written by pandas), else by ``0..n-1``.
 
     Raises
     ------
@@ -215,7 +217,10 @@ def read_series(path, column=None, *, min_length=2):
                               min_length=min_length)
     except (ValueError, TypeError) as exc:
         raise type(exc)(str(exc).replace("\n", " ")) from exc
-    return pd.Series(values, name=str(name))
+    # a time index (parquet written from pandas) carries the sampling step: keep it
+    # so that the caller can read it with skdelay._checks.sample_dt_from_index
+    index = frame.index if isinstance(frame.index, (pd.DatetimeIndex, pd.TimedeltaIndex)) else None
+    return pd.Series(values, index=index, name=str(name))
 
 
 def write_series(path, values, *, name="x", comment=None):

@@ -185,8 +185,9 @@ def build_parser():
     an.add_argument("file", metavar="FILE", help=".npy, .csv/.txt/.dat or .parquet file")
     an.add_argument("--column", "-c", default=None,
                     help="column name or 0-based index (needed when the file has several)")
-    an.add_argument("--dt", type=_positive_float, default=1.0,
-                    help="sampling interval in your time unit (default 1)")
+    an.add_argument("--dt", type=_positive_float, default=None,
+                    help="sampling interval in your time unit (default: the step in seconds "
+                         "of the file's time index, if it has one, else 1)")
     an.add_argument("--m", type=parse_m, default=(2, 3, 4, 5), metavar="M",
                     help="window lengths: 3, 2,3,5 or 2..5 (default 2..5)")
     an.add_argument("--tau-min", type=_int_at_least(1), default=1, metavar="N",
@@ -285,10 +286,14 @@ def _progress(args):
 
 def _prepare_analyze(args):
     from . import _analysis
+    from ._checks import sample_dt_from_index
     from ._io import check_output_directory, read_series
 
     check_output_directory(args.out, force=args.force)
     series = read_series(args.file, args.column)
+    if args.dt is None:
+        # a regular time index gives the step in seconds; an irregular one is an input error
+        args.dt = sample_dt_from_index(series) or 1.0
     options = _analysis.check_options(
         series.to_numpy(), m=args.m, tau_min=args.tau_min, tau_max=args.tau_max,
         sample_dt=args.dt, n_queries=args.n_queries,

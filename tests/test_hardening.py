@@ -1,0 +1,405 @@
+"""Hardening (issue 16): usage errors exit 2, safe outputs under kill -9, strict JSON."""
+
+import json
+import os
+import random
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from skdelay._atomic import (
+    atomic_path,
+    check_writable,
+    clean_stale_temporaries,
+    make_temporary,
+    owner_tag,
+)
+from skdelay._checks import sample_dt_from_index
+from skdelay._io import (
+    OUTPUT_MARKER,
+    Unavailable,
+    atomic_directory,
+    check_output_directory,
+    dumps_strict,
+    read_series,
+    write_json,
+)
+from skdelay.cli import main
+from skdelay.systems import DivergenceError, Ikeda, MackeyGlass, get_system
+
+SIM = ["simulate", "mackey_glass", "--n", "200"]
+
+
+def run(argv, capsys):
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def assert_usage_error(code, err, *needles):
+    assert code == 2, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    for needle in needles:
+        assert needle.lower() in lines[0].lower(), lines[0]
+
+
+def listing(path):
+    return sorted(p.name for p in Path(path).iterdir())
+
+
+def dead_pid():
+    """The pid of a process that has exited (and been reaped)."""
+    proc = subprocess.Popen([sys.executable, "-c", "pass"])
+    proc.wait()
+    return proc.pid
+
+
+# ------------------------------------------------------------------ usage errors exit 2
+@pytest.mark.parametrize("extra, needles", [
+    (["--param", "tau=0.04"], ["does not resolve the delay", "tau=0.04"]),
+    (["--param", "n=-3"], ["positive hill exponent", "n=-3"]),
+    (["--param", "tau=-5"], ["delay tau must be positive"]),
+    (["--param", "tau"], ["--param expects NAME=VALUE"]),
+    (["--param", "tau=abc"], ["--param tau needs a number"]),
+    (["--param", "gamma=1"], ["no parameter", "gamma", "valid parameters"]),
+    (["--seed", "-1"], ["--seed", "between 0 and 2**32 - 1"]),
+    (["--seed", str(2**32)], ["--seed", "between 0 and 2**32 - 1"]),
+    (["--param", "tau=10:0.01"], ["does not resolve the delay"]),  # one end of a drift
+])
+def test_simulate_usage_errors_exit_2_and_write_nothing(tmp_path, capsys, extra, needles):
+    code, _, err = run([*SIM, "-o", tmp_path / "x.npy", *extra], capsys)
+    assert_usage_error(code, err, *needles)
+    assert listing(tmp_path) == []
+
+
+def test_unknown_system_exits_2(tmp_path, capsys):
+    code, _, err = run(["simulate", "mackey", "--n", 10, "-o", tmp_path / "x.npy"], capsys)
+    assert_usage_error(code, err, "unknown system 'mackey'", "mackey_glass")
+
+
+@pytest.mark.parametrize("command", [
+    ["analyze", "{data}", "--out", "{tmp}/o"],
+    ["gap", "{data}", "--system", "mackey_glass", "--out", "{tmp}/o"],
+    ["demo", "--out", "{tmp}/o"],
+])
+def test_n_jobs_zero_exits_2(tmp_path, capsys, command):
+    data = tmp_path / "x.npy"
+    np.save(data, np.sin(np.arange(300.0)))
+    argv = [a.format(data=data, tmp=tmp_path) for a in command] + ["--n-jobs", "0"]
+    code, _, err = run(argv, capsys)
+    assert_usage_error(code, err, "--n-jobs", "use 1 (serial)")
+    assert listing(tmp_path) == ["x.npy"]
+
+
+def test_divergence_exits_2_and_names_the_parameter(tmp_path, capsys, monkeypatch):
+    # no valid Mackey-Glass parameters diverge, so shrink the a-priori amplitude instead
+    monkeypatch.setattr(MackeyGlass, "_amplitude", lambda self, params: 1e-6)
+    out = tmp_path / "x.npy"
+    code, _, err = run([*SIM, "-o", out, "--param", "tau=20"], capsys)
+    assert_usage_error(code, err, "diverged", "beyond the bound", "change tau (default 17)")
+    assert listing(tmp_path) == []
+
+
+# ------------------------------------------------------------- unwritable outputs, early
+def test_unwritable_out_is_found_before_any_work(tmp_path, capsys):
+    afile = tmp_path / "a_file"
+    afile.write_text("not a directory")
+    missing_input = tmp_path / "missing.csv"  # would be exit 2 too, but later
+    code, _, err = run(["analyze", missing_input, "--out", afile / "sub"], capsys)
+    assert_usage_error(code, err, "--out", "is a file, not a directory")
+    code, _, err = run([*SIM, "-o", afile / "x.npy"], capsys)
+    assert_usage_error(code, err, "-o", "is a file, not a directory")
+    assert listing(tmp_path) == ["a_file"]
+
+
+@pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs Linux /proc")
+def test_check_writable_probes_for_real():
+    # os.access says yes to root on /proc; only an actual write attempt tells
+    with pytest.raises(ValueError, match="cannot write in /proc"):
+        check_writable("/proc/skdelay-out")
+
+
+def test_check_writable_leaves_nothing(tmp_path):
+    assert check_writable(tmp_path / "a" / "b" / "out") == tmp_path / "a" / "b" / "out"
+    assert listing(tmp_path) == []
+
+
+@pytest.mark.skipif(os.geteuid() == 0 if hasattr(os, "geteuid") else True,
+                    reason="root may write into read-only directories")
+def test_readonly_parent_is_usage_error(tmp_path, capsys):  # pragma: no cover - non-root
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    try:
+        code, _, err = run([*SIM, "-o", ro / "x.npy"], capsys)
+        assert_usage_error(code, err, "cannot write in")
+    finally:
+        ro.chmod(0o700)
+
+
+# ------------------------------------------------------------------ --force and marker
+def test_force_replaces_only_skdelay_outputs(tmp_path):
+    foreign = tmp_path / "thesis"
+    foreign.mkdir()
+    (foreign / "chapter1.tex").write_text("precious")
+    with pytest.raises(ValueError, match="not written by skdelay"):
+        check_output_directory(foreign, force=True)
+    with (pytest.raises(ValueError, match="not written by skdelay"),
+          atomic_directory(foreign, force=True) as tmp):
+        (tmp / "x").write_text("new")
+    assert listing(foreign) == ["chapter1.tex"]
+
+    ours = tmp_path / "ours"
+    with atomic_directory(ours) as tmp:
+        (tmp / "a.txt").write_text("first")
+    assert listing(ours) == [OUTPUT_MARKER, "a.txt"]
+    with pytest.raises(ValueError, match="pass --force"):
+        check_output_directory(ours)
+    with atomic_directory(ours, force=True) as tmp:
+        (tmp / "b.txt").write_text("second")
+    assert listing(ours) == [OUTPUT_MARKER, "b.txt"]
+    assert listing(tmp_path) == ["ours", "thesis"]
+
+
+def test_cli_force_refuses_foreign_directory_before_work(tmp_path, capsys):
+    out = tmp_path / "results"
+    out.mkdir()
+    (out / "keep.txt").write_text("mine")
+    data = tmp_path / "x.npy"
+    np.save(data, np.sin(np.arange(300.0)))
+    code, _, err = run(["analyze", data, "--out", out, "--force", "--quiet"], capsys)
+    assert_usage_error(code, err, "not written by skdelay", OUTPUT_MARKER)
+    assert listing(out) == ["keep.txt"]
+
+
+# ------------------------------------------------------------------ stale temporaries
+def test_stale_temporaries_are_removed_live_ones_kept(tmp_path):
+    gone = dead_pid()
+    stale_dir = tmp_path / f".report.skd{gone}x0_abc123.tmp"
+    stale_dir.mkdir()
+    (stale_dir / "half.json").write_text("{")
+    stale_file = tmp_path / f".x.npy.skd{gone}x0_zz9.tmp"
+    stale_file.write_text("half")
+    live = tmp_path / f".other.{owner_tag()}q1.tmp"  # this process: in progress
+    live.mkdir()
+    unrelated = tmp_path / ".report.keepme.tmp"  # not skdelay's naming: never touched
+    unrelated.mkdir()
+    with atomic_directory(tmp_path / "report") as tmp:
+        (tmp / "results.json").write_text("{}")
+    assert listing(tmp_path) == sorted([live.name, ".report.keepme.tmp", "report"])
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").is_file(), reason="needs Linux /proc")
+def test_reused_pid_counts_as_stale(tmp_path):
+    # the pid is alive (this process) but the recorded start time is another process's
+    mine = os.getpid()
+    reused = tmp_path / f".out.skd{mine}x1_abc.tmp"
+    reused.mkdir()
+    assert clean_stale_temporaries(tmp_path) == [reused.name]
+    assert listing(tmp_path) == []
+
+
+def test_killed_force_swap_restores_the_old_output(tmp_path):
+    # killed between "move old aside" and "move new in": the old output comes back
+    gone = dead_pid()
+    old = tmp_path / f".report.skd{gone}x0_abc.old"
+    (old / "d").mkdir(parents=True)
+    (old / "d" / "results.json").write_text('{"old": 1}')
+    assert clean_stale_temporaries(tmp_path) == [old.name]
+    assert listing(tmp_path) == ["report"]
+    assert json.loads((tmp_path / "report" / "results.json").read_text()) == {"old": 1}
+
+
+def test_atomic_path_temporary_is_owned_and_cleaned(tmp_path):
+    target = tmp_path / "x.npy"
+    with atomic_path(target) as tmp:
+        assert tmp.name.startswith(f".x.npy.{owner_tag()}") and tmp.name.endswith(".tmp")
+        tmp.write_text("data")
+    assert listing(tmp_path) == ["x.npy"]
+    tmp = make_temporary(target)
+    assert tmp.exists()  # ours and alive: kept by the next clean-up
+    assert clean_stale_temporaries(tmp_path) == []
+    tmp.unlink()
+
+
+_KILL_SEEDS = range(10)
+
+
+def _complete_series(path, n):
+    values = read_series(path).to_numpy()
+    assert values.shape == (n,)
+    assert np.all(np.isfinite(values))
+
+
+@pytest.mark.slow
+def test_kill_9_never_leaves_a_partial_output(tmp_path):
+    """SIGKILL at random moments: the target is absent or complete; the next run cleans up."""
+    n = 400_000  # long enough that the run (startup, integration, writing) spans ~2-4 s
+    target = tmp_path / "mg.csv"
+    argv = [sys.executable, "-m", "skdelay.cli", *SIM[:2], "--n", str(n), "--dt", "0.5",
+            "-o", str(target), "--force"]
+    rng = random.Random(16)
+    completed = killed = 0
+    for _ in _KILL_SEEDS:
+        proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        try:
+            proc.wait(timeout=rng.uniform(0.2, 3.0))
+            completed += 1
+        except subprocess.TimeoutExpired:
+            proc.send_signal(signal.SIGKILL)
+            proc.wait()
+            killed += 1
+        if target.exists():
+            _complete_series(target, n)
+        assert all(p.name == "mg.csv" or p.name.endswith(".tmp") for p in tmp_path.iterdir())
+    assert killed >= 3, "no run was killed: the test no longer tests anything"
+    final = subprocess.run(argv, check=False, capture_output=True, text=True, timeout=60)
+    assert final.returncode == 0, final.stderr
+    _complete_series(target, n)
+    assert listing(tmp_path) == ["mg.csv"]  # leftovers of the killed runs are gone
+
+
+@pytest.mark.slow
+def test_kill_9_during_analyze_leaves_no_partial_directory(tmp_path):
+    sys.path.insert(0, str(Path(__file__).parent))
+    from _cli_data import small_delay_series
+
+    x, _ = small_delay_series(n=3000)
+    data = tmp_path / "in.npy"
+    np.save(data, x)
+    out = tmp_path / "res"
+    argv = [sys.executable, "-m", "skdelay.cli", "analyze", str(data), "--out", str(out),
+            "--force", "--quiet", "--quick", "--m", "2..3", "--tau-min", "6", "--tau-max", "16",
+            "--n-queries", "500"]
+    rng = random.Random(7)
+    for _ in range(4):
+        proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        try:
+            proc.wait(timeout=rng.uniform(0.5, 3.0))
+        except subprocess.TimeoutExpired:
+            proc.send_signal(signal.SIGKILL)
+            proc.wait()
+        if out.exists():
+            assert {"results.json", "report.html", OUTPUT_MARKER} <= set(listing(out))
+            json.loads((out / "results.json").read_text())
+    final = subprocess.run(argv, check=False, capture_output=True, text=True, timeout=120)
+    assert final.returncode == 0, final.stderr
+    assert listing(tmp_path) == ["in.npy", "res"]
+
+
+# ----------------------------------------------------------------------- strict JSON
+def _strict_loads(text):
+    def refuse(token):
+        raise AssertionError(f"non-strict JSON token {token}")
+
+    return json.loads(text, parse_constant=refuse)
+
+
+def test_dumps_strict_nan_inf_become_null_with_reasons():
+    obj = {"summary": {"delay": float("nan"), "lambda_max": np.float32(np.inf),
+                       "m": np.int64(3), "minimal_m": Unavailable("no m reached the floor"),
+                       "D_KY": -np.inf, "D_KY_reason": "given by caller"},
+           "curve": np.array([1.0, np.nan, 2.0]), "flag": np.bool_(True),
+           "frame": pd.DataFrame({"a": [1.0, np.nan]}), "path": Path("x/y")}
+    data = _strict_loads(dumps_strict(obj, reasons={"delay": "no significant dip"}))
+    assert data["summary"] == {"delay": None, "delay_reason": "no significant dip",
+                               "lambda_max": None, "m": 3, "minimal_m": None,
+                               "minimal_m_reason": "no m reached the floor",
+                               "D_KY": None, "D_KY_reason": "given by caller"}
+    assert data["curve"] == [1.0, None, 2.0]
+    assert data["flag"] is True and data["frame"] == {"a": [1.0, None]}
+    assert data["path"] == os.fspath(Path("x/y"))
+
+
+def test_dumps_strict_refuses_what_it_cannot_write():
+    with pytest.raises(TypeError, match="complex"):
+        dumps_strict({"z": 1j})
+    with pytest.raises(TypeError, match="at key 'o'"):
+        dumps_strict({"o": object()})
+
+
+def test_write_json_path_and_file(tmp_path):
+    path = tmp_path / "r.json"
+    write_json(path, {"x": np.nan})
+    assert _strict_loads(path.read_text()) == {"x": None}
+    assert listing(tmp_path) == ["r.json"]
+    with open(tmp_path / "s.json", "w") as fh:
+        write_json(fh, [np.inf], indent=None)
+    assert (tmp_path / "s.json").read_text() == "[null]\n"
+
+
+# ------------------------------------------------------------------------- simulators
+@pytest.mark.parametrize("cls, params, match", [
+    (MackeyGlass, {"n": -3}, "positive Hill exponent"),
+    (MackeyGlass, {"n": 0}, "positive Hill exponent"),
+    (MackeyGlass, {"tau": -1.0}, "delay tau must be positive"),
+    (MackeyGlass, {"a": float("nan")}, "give a finite number"),
+    (MackeyGlass, {"b": "0.1"}, "must be a real number"),
+    (Ikeda, {"tau": 0.0}, "delay tau must be positive"),
+])
+def test_invalid_parameters_at_construction(cls, params, match):
+    error = TypeError if isinstance(next(iter(params.values())), str) else ValueError
+    with pytest.raises(error, match=match):
+        cls(**params)
+
+
+def test_invalid_parameters_in_overrides():
+    mg = MackeyGlass()
+    with pytest.raises(ValueError, match="positive Hill exponent"):
+        mg.simulate(10, n=-3)
+    with pytest.raises(ValueError, match="positive Hill exponent"):
+        mg.simulate(10, n=(10.0, -1.0))  # the end of a drift
+    with pytest.raises(ValueError, match="delay tau must be positive"):
+        mg.check_simulation(10, tau=-2.0)
+    with pytest.raises(ValueError, match="does not resolve the delay"):
+        mg.check_simulation(10, tau=0.04)
+    assert mg.check_simulation(10, tau=30.0) is None
+
+
+def test_divergence_beyond_the_bound_is_a_value_error(monkeypatch):
+    monkeypatch.setattr(Ikeda, "_amplitude", lambda self, params: 1e-3)
+    with pytest.raises(DivergenceError, match=r"change mu \(default 20\)") as info:
+        Ikeda(mu=25.0).simulate(50, sample_dt=0.1, random_state=0)
+    assert isinstance(info.value, ValueError)
+    with pytest.raises(DivergenceError, match="lower dynamical_noise"):
+        Ikeda().simulate(50, sample_dt=0.1, random_state=0)
+
+
+def test_default_systems_stay_inside_their_bound():
+    for name in ("mackey_glass", "ikeda", "electro_optic"):
+        system = get_system(name)
+        x = system.simulate(200, sample_dt=0.5, random_state=1)
+        assert np.abs(x).max() < system._amplitude(system.params)
+
+
+# ------------------------------------------------------------------- pandas sample_dt
+def test_sample_dt_from_index():
+    idx = pd.date_range("2024-01-01", periods=50, freq="250ms")
+    assert sample_dt_from_index(pd.Series(np.arange(50.0), index=idx)) == 0.25
+    tdi = pd.timedelta_range(0, periods=20, freq="2min")
+    assert sample_dt_from_index(pd.Series(np.arange(20.0), index=tdi)) == 120.0
+    assert sample_dt_from_index(pd.Series(np.arange(5.0))) is None
+    irregular = idx.delete(10)
+    with pytest.raises(ValueError, match="irregular"):
+        sample_dt_from_index(pd.Series(np.arange(49.0), index=irregular))
+    with pytest.raises(ValueError, match="not increasing"):
+        sample_dt_from_index(pd.Series(np.arange(50.0), index=idx[::-1]))
+
+
+def test_parquet_time_index_gives_the_step(tmp_path, capsys):
+    pytest.importorskip("pyarrow")
+    idx = pd.date_range("2024-01-01", periods=400, freq="5ms")
+    frame = pd.DataFrame({"v": np.sin(np.arange(400.0))}, index=idx)
+    frame.to_parquet(tmp_path / "regular.parquet")
+    series = read_series(tmp_path / "regular.parquet")
+    assert sample_dt_from_index(series) == 0.005
+    frame.iloc[np.r_[0:100, 101:400]].to_parquet(tmp_path / "gappy.parquet")
+    code, _, err = run(["analyze", tmp_path / "gappy.parquet", "--out", tmp_path / "o"], capsys)
+    assert_usage_error(code, err, "irregular", "resample")
+    assert not (tmp_path / "o").exists()
