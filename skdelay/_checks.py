@@ -171,8 +171,9 @@ class Interval:
 
     def describe(self):
         what = "an integer" if self.kind == "int" else "a finite number"
-        left = "[" if self.closed in ("both", "left") else "("
-        right = "]" if self.closed in ("both", "right") else ")"
+        # an infinite end is never included: the values must be finite
+        left = "[" if self.closed in ("both", "left") and self.low is not None else "("
+        right = "]" if self.closed in ("both", "right") and self.high is not None else ")"
         low = "-inf" if self.low is None else f"{self.low:g}"
         high = "inf" if self.high is None else f"{self.high:g}"
         if self.low is not None or self.high is not None:
@@ -338,3 +339,41 @@ def check_params(**params):
             rule = PARAM_RULES[name]
         out.append(rule(name, value))
     return out[0] if len(out) == 1 else tuple(out)
+
+
+def standardise(series):
+    """Return ``((s - mean) / std, mean, std)`` without overflow or underflow.
+
+    ``s.std()`` squares the data: it is ``inf`` for ``|s| ~ 1e200`` and ``0``
+    for ``|s| ~ 1e-200``.  Dividing by ``max |s|`` first keeps every
+    intermediate near 1, so estimators that standardise internally give the
+    same answer at any scale that float64 can hold.
+
+    Parameters
+    ----------
+    series : ndarray of shape (n_samples,)
+        Finite, non-constant (see :func:`check_series`).
+
+    Returns
+    -------
+    z : ndarray
+        Zero mean, unit standard deviation.
+    mean, std : float
+        In the units of ``series`` (``series = z * std + mean``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from skdelay._checks import standardise
+    >>> z, mean, std = standardise(np.array([1.0, 3.0]) * 1e200)
+    >>> np.round(z, 12).tolist(), float(mean), round(float(std) / 1e200, 12)
+    ([-1.0, 1.0], 2e+200, 1.0)
+    """
+    s = np.asarray(series, dtype=np.float64)
+    c = float(np.max(np.abs(s)))
+    z = s / c
+    mean, std = z.mean(), z.std()
+    if not std > 0:
+        raise ValueError("the series is constant to float64 precision; nothing to standardise "
+                         "- check the recording channel.")
+    return (z - mean) / std, mean * c, std * c

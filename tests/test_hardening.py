@@ -403,3 +403,89 @@ def test_parquet_time_index_gives_the_step(tmp_path, capsys):
     code, _, err = run(["analyze", tmp_path / "gappy.parquet", "--out", tmp_path / "o"], capsys)
     assert_usage_error(code, err, "irregular", "resample")
     assert not (tmp_path / "o").exists()
+
+
+# ------------------------------------------------- invalid parameters fail at the call
+from skdelay import _correlation as corr
+from skdelay import (
+    classic,
+    required_lags,
+    spacetime,
+    validation,
+)
+from skdelay._testing_maps import henon
+
+X = henon(800, random_state=0)
+Y = henon(800, random_state=1)
+
+
+@pytest.mark.parametrize("call, error, needles", [
+    (lambda: validation.value_histogram(X, bins=0), ValueError, ["bins must be an integer in [1"]),
+    (lambda: validation.value_histogram(X, bins=[0.0, np.nan]), ValueError, ["bin edges"]),
+    (lambda: validation.value_histogram(X, range=(1, np.nan)), ValueError, ["range", "finite"]),
+    (lambda: validation.histogram_distance(X, Y, bins=-3), ValueError, ["bins must be"]),
+    (lambda: validation.histogram_distance(X, Y, bins="auto"), TypeError, ["bins"]),
+    (lambda: validation.histogram_distance(X, Y, metric="l2"), ValueError,
+     ["metric must be one of 'hellinger' or 'total_variation'"]),
+    (lambda: validation.cross_prediction_by_region(X, Y, m=2, tau=2, n_regions=100_000),
+     ValueError, ["n_regions must be an integer in [1, 50]"]),
+    (lambda: validation.cross_prediction_error(X, m=2, tau=2, random_state="x"), TypeError,
+     ["random_state must be None, an integer seed"]),
+    (lambda: validation.cross_prediction_error(X, m=2, tau=2, random_state=-1), ValueError,
+     ["random_state must be a seed in [0, 4294967295]"]),
+    (lambda: validation.cross_prediction_error(X, m=2, tau=2, n_jobs=0), ValueError,
+     ["n_jobs must be a non-zero integer", "use 1 (serial)"]),
+    (lambda: validation.cross_prediction_error(X, m=2, tau=2, ridge=-1e-3), ValueError,
+     ["ridge must be a finite number in [0, inf)"]),
+    (lambda: validation.cross_prediction_error(X, m=2, tau=2, radius=np.nan), ValueError,
+     ["radius must be a finite number in (0, inf) or None"]),
+    (lambda: validation.power_spectrum(X, sample_dt=np.nan), ValueError, ["sample_dt must be"]),
+    (lambda: validation.spectrum_distance(X, Y, max_frequency=-1.0), ValueError,
+     ["max_frequency must be"]),
+    (lambda: validation.autocorrelation_distance(X, Y, n_bands=0), ValueError,
+     ["n_bands must be an integer in [1"]),
+    (lambda: classic.correlation_sum(X, 2, radii=[np.nan, 0.1]), ValueError,
+     ["radii must be finite, positive and strictly increasing"]),
+    (lambda: classic.correlation_sum(X, 2, radii=[1e-300]), ValueError,
+     ["beyond float64 resolution"]),
+    (lambda: classic.correlation_sum(X, 2, workers=0), ValueError, ["workers must be a non-zero"]),
+    (lambda: classic.false_nearest_neighbors(X, rtol=-1.0), ValueError,
+     ["rtol must be a finite number in (0, inf)"]),
+    (lambda: classic.false_nearest_neighbors(X, atol=np.nan), ValueError, ["atol must be"]),
+    (lambda: classic.noise_reduction(X, end_weight=-1.0), ValueError, ["end_weight must be"]),
+    (lambda: classic.poincare_section(X, sample_dt=-1.0), ValueError, ["sample_dt must be"]),
+    (lambda: classic.poincare_section(X, prominence=np.nan), ValueError, ["prominence must be"]),
+    (lambda: classic.poincare_section(X, kind="peaks"), ValueError, ["kind must be one of"]),
+    (lambda: classic.maximal_lyapunov_exponent(X, dim=2, fit_range=(np.nan, 3)), ValueError,
+     ["fit_range must be a finite (low, high) pair"]),
+    (lambda: classic.correlation_dimension(X, dims=[1, 2], min_pairs=-1), ValueError,
+     ["min_pairs must be an integer in [1"]),
+    (lambda: corr.mutual_information(X, 3, n_bins=10**9), ValueError,
+     ["n_bins must be an integer in [2, 4096]"]),
+    (lambda: corr.revival_peak(corr.autocorrelation(X, 50), prominence=-1.0), ValueError,
+     ["prominence must be"]),
+    (lambda: spacetime.space_time(X, 20, n_columns=10**9), ValueError,
+     ["n_columns must be an integer in [1, 320]"]),
+    (lambda: spacetime.space_time(X, 20, start=np.nan), ValueError, ["start must be"]),
+])
+def test_invalid_parameters_fail_at_the_call(call, error, needles):
+    with pytest.raises(error) as info:
+        call()
+    for needle in needles:
+        assert needle in str(info.value), str(info.value)
+
+
+def test_cross_prediction_by_region_cells_match_a_loop():
+    # the vectorised cell statistics equal the per-cell loop they replace
+    where = validation.cross_prediction_by_region(X, Y, m=2, tau=2, n_regions=3, random_state=0)
+    # every predicted row (one per lag window with a next value) lies in exactly one cell
+    assert where["count"].sum() == len(X) - required_lags(2, 2)
+    assert len(where) == 9 and where["excess"].dropna().is_monotonic_decreasing
+
+
+def test_power_spectrum_outside_float64_is_a_clear_error():
+    with pytest.raises(ValueError, match="outside float64"):
+        validation.power_spectrum(X * 1e200)
+    _, p = validation.power_spectrum(X * 1e100, nperseg=64)
+    _, p1 = validation.power_spectrum(X, nperseg=64)
+    np.testing.assert_allclose(p, p1 * 1e200, rtol=1e-12)
