@@ -174,8 +174,9 @@ class Interval:
         # an infinite end is never included: the values must be finite
         left = "[" if self.closed in ("both", "left") and self.low is not None else "("
         right = "]" if self.closed in ("both", "right") and self.high is not None else ")"
-        low = "-inf" if self.low is None else f"{self.low:g}"
-        high = "inf" if self.high is None else f"{self.high:g}"
+        fmt = "d" if self.kind == "int" else "g"  # 1000000, not 1e+06, for counts
+        low = "-inf" if self.low is None else format(self.low, fmt)
+        high = "inf" if self.high is None else format(self.high, fmt)
         if self.low is not None or self.high is not None:
             what += f" in {left}{low}, {high}{right}"
         return what + (" or None" if self.allow_none else "")
