@@ -378,3 +378,38 @@ def standardise(series):
         raise ValueError("the series is constant to float64 precision; nothing to standardise "
                          "- check the recording channel.")
     return (z - mean) / std, mean * c, std * c
+
+
+def resolve_sample_dt(series, sample_dt=None):
+    """The sampling step to use: ``sample_dt`` if given, else the series' time index, else 1.
+
+    Parameters
+    ----------
+    series : array-like or pandas.Series
+        A Series with a ``DatetimeIndex``/``TimedeltaIndex`` carries its step
+        (in seconds, see :func:`sample_dt_from_index`).
+    sample_dt : float or None
+        An explicit step (any time unit) wins over the index.
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    ValueError
+        ``sample_dt`` is not a positive finite number, or (when it is None)
+        the time index is irregular.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> from skdelay._checks import resolve_sample_dt
+    >>> s = pd.Series(range(5), index=pd.timedelta_range(0, periods=5, freq="2s"))
+    >>> resolve_sample_dt(s), resolve_sample_dt(s, 0.5), resolve_sample_dt([1, 2, 3])
+    (2.0, 0.5, 1.0)
+    """
+    if sample_dt is not None:
+        return PARAM_RULES["sample_dt"]("sample_dt", sample_dt)
+    from_index = sample_dt_from_index(series) if hasattr(series, "index") else None
+    return 1.0 if from_index is None else from_index

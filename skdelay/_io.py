@@ -21,7 +21,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ._atomic import atomic_path, check_writable, make_temporary, write_text
+from ._atomic import (
+    atomic_path,
+    check_writable,
+    clean_stale_temporaries,
+    make_temporary,
+    write_text,
+)
 from ._checks import check_series
 
 __all__ = ["OUTPUT_MARKER", "Unavailable", "atomic_directory", "check_output_directory",
@@ -282,6 +288,11 @@ def check_output_directory(path, *, force=False):
     -------
     pathlib.Path
 
+    Notes
+    -----
+    Also removes the stale temporaries of killed runs in the parent
+    directory (see :func:`skdelay._atomic.clean_stale_temporaries`).
+
     Raises
     ------
     ValueError
@@ -301,6 +312,8 @@ def check_output_directory(path, *, force=False):
                              f"(no {OUTPUT_MARKER} file inside); choose another --out or "
                              "delete it yourself.")
     check_writable(path, what="--out")
+    # leftovers of killed runs go now, not only when this run writes (it may fail first)
+    clean_stale_temporaries(path.absolute().parent)
     return path
 
 
@@ -373,7 +386,7 @@ class Unavailable:
         return f"Unavailable({self.reason!r})"
 
 
-def _plain(obj, reasons, key=None):
+def _plain(obj, reasons, key=None, default=None):
     """Recursively convert ``obj`` into JSON-safe Python objects (non-finite -> None)."""
     if isinstance(obj, Unavailable):
         return None
@@ -393,7 +406,7 @@ def _plain(obj, reasons, key=None):
         out = {}
         for k, v in obj.items():
             name = str(k)
-            out[name] = _plain(v, reasons, name)
+            out[name] = _plain(v, reasons, name, default)
             reason_key = f"{name}_reason"
             if out[name] is None and reason_key not in obj:
                 reason = (v.reason if isinstance(v, Unavailable)
@@ -404,20 +417,22 @@ def _plain(obj, reasons, key=None):
     if isinstance(obj, (pd.Series, pd.Index)):
         obj = obj.tolist()
     elif isinstance(obj, pd.DataFrame):
-        return _plain(obj.to_dict(orient="list"), reasons, key)
+        return _plain(obj.to_dict(orient="list"), reasons, key, default)
     if isinstance(obj, np.ndarray):
         obj = obj.tolist()
     if isinstance(obj, (list, tuple, set, frozenset)):
-        return [_plain(v, reasons, key) for v in obj]
+        return [_plain(v, reasons, key, default) for v in obj]
     if isinstance(obj, os.PathLike):
         return os.fspath(obj)
     if hasattr(obj, "to_dict"):
-        return _plain(obj.to_dict(), reasons, key)
+        return _plain(obj.to_dict(), reasons, key, default)
+    if default is not None:
+        return _plain(default(obj), reasons, key, None)
     raise TypeError(f"cannot write {type(obj).__name__} as JSON (at key {key!r}); convert it "
                     "to numbers, strings, lists or dicts first.")
 
 
-def dumps_strict(obj, *, reasons=None, indent=2):
+def dumps_strict(obj, *, reasons=None, indent=2, default=None):
     """Serialise ``obj`` as strict JSON (RFC 8259): NaN and infinities become ``null``.
 
     ``json.dumps`` writes bare ``NaN`` / ``Infinity``, which JavaScript,
@@ -434,6 +449,10 @@ def dumps_strict(obj, *, reasons=None, indent=2):
     reasons : dict of str to str, optional
         Reason for a ``null`` under a key of that name (at any depth).
     indent : int or None, default=2
+    default : callable, optional
+        Called on objects of other types (like ``json.dumps``'s ``default``,
+        e.g. ``str``); its result is converted in turn.  Without it such
+        objects raise ``TypeError``.
 
     Returns
     -------
@@ -445,25 +464,25 @@ def dumps_strict(obj, *, reasons=None, indent=2):
     >>> print(dumps_strict({"delay": float("nan"), "m": Unavailable("no dip")}, indent=None))
     {"delay": null, "m": null, "m_reason": "no dip"}
     """
-    return json.dumps(_plain(obj, reasons), indent=indent, allow_nan=False)
+    return json.dumps(_plain(obj, reasons, None, default), indent=indent, allow_nan=False)
 
 
-def write_json(path_or_file, obj, *, reasons=None, indent=2):
+def write_json(path_or_file, obj, *, reasons=None, indent=2, default=None):
     """Write ``obj`` as strict JSON (see :func:`dumps_strict`) to a path (atomically) or file.
 
     Parameters
     ----------
     path_or_file : str, path-like or text file object
     obj : object
-    reasons : dict of str to str, optional
-    indent : int or None, default=2
+    reasons, indent, default
+        As in :func:`dumps_strict`.
 
     Returns
     -------
     str
         The JSON text written (without the final newline).
     """
-    text = dumps_strict(obj, reasons=reasons, indent=indent)
+    text = dumps_strict(obj, reasons=reasons, indent=indent, default=default)
     if hasattr(path_or_file, "write"):
         path_or_file.write(text + "\n")
     else:

@@ -286,14 +286,13 @@ def _progress(args):
 
 def _prepare_analyze(args):
     from . import _analysis
-    from ._checks import sample_dt_from_index
+    from ._checks import resolve_sample_dt
     from ._io import check_output_directory, read_series
 
     check_output_directory(args.out, force=args.force)
     series = read_series(args.file, args.column)
-    if args.dt is None:
-        # a regular time index gives the step in seconds; an irregular one is an input error
-        args.dt = sample_dt_from_index(series) or 1.0
+    # a regular time index gives the step in seconds; an irregular one is an input error
+    args.dt = resolve_sample_dt(series, args.dt)
     options = _analysis.check_options(
         series.to_numpy(), m=args.m, tau_min=args.tau_min, tau_max=args.tau_max,
         sample_dt=args.dt, n_queries=args.n_queries,
@@ -372,6 +371,10 @@ def _prepare_gap(args):
         raise UsageError("gap compares against a fixed simulator; give --param K=V without a "
                          "start:end drift")
     real = read_series(args.real, args.column, min_length=2)
+    try:  # the simulator must be able to produce a series like REAL (delay resolution, ...)
+        system.check_simulation(real.size, sample_dt=args.dt)
+    except (TypeError, ValueError) as exc:
+        raise UsageError(_one_line(exc)) from exc
     effects = None
     if args.effects:
         from .gap import EFFECTS
@@ -422,7 +425,7 @@ def _list_systems():
 
 
 def _prepare_simulate(args):
-    from ._atomic import check_writable
+    from ._atomic import check_writable, clean_stale_temporaries
 
     if args.list:
         return lambda: print(_list_systems())
@@ -451,6 +454,7 @@ def _prepare_simulate(args):
         check_writable(out, what="-o")
     except (TypeError, ValueError) as exc:
         raise UsageError(_one_line(exc)) from exc
+    clean_stale_temporaries(out.absolute().parent)  # leftovers of killed runs
 
     def run():
         from ._io import write_series

@@ -489,3 +489,37 @@ def test_power_spectrum_outside_float64_is_a_clear_error():
     _, p = validation.power_spectrum(X * 1e100, nperseg=64)
     _, p1 = validation.power_spectrum(X, nperseg=64)
     np.testing.assert_allclose(p, p1 * 1e200, rtol=1e-12)
+
+
+def test_resolve_sample_dt():
+    from skdelay._checks import resolve_sample_dt
+
+    s = pd.Series(np.zeros(4), index=pd.date_range("2024", periods=4, freq="20ms"))
+    assert resolve_sample_dt(s) == 0.02
+    assert resolve_sample_dt(s, 3.0) == 3.0  # an explicit step (any unit) wins
+    assert resolve_sample_dt(np.zeros(4)) == 1.0
+    with pytest.raises(ValueError, match=r"sample_dt must be a finite number in \(0, inf\)"):
+        resolve_sample_dt(s, -1.0)
+
+
+def test_gap_with_an_unresolvable_delay_exits_2_before_work(tmp_path, capsys):
+    real = tmp_path / "real.npy"
+    np.save(real, np.sin(np.arange(500.0)))
+    code, _, err = run(["gap", real, "--system", "mackey_glass", "--param", "tau=0.04",
+                        "--out", tmp_path / "g"], capsys)
+    assert_usage_error(code, err, "does not resolve the delay")
+    assert listing(tmp_path) == ["real.npy"]
+
+
+def test_stale_leftovers_go_even_when_the_next_run_fails(tmp_path, capsys):
+    stale = tmp_path / f".res.skd{dead_pid()}x0_abc.tmp"
+    stale.mkdir()
+    code, _, err = run(["analyze", tmp_path / "missing.csv", "--out", tmp_path / "res"], capsys)
+    assert_usage_error(code, err, "does not exist")
+    assert listing(tmp_path) == []
+    stale.mkdir()
+    code, _, err = run([*SIM, "-o", tmp_path / "x.npy", "--param", "tau=-1"], capsys)
+    assert code == 2 and stale.exists()  # refused while preparing: nothing touched yet
+    code, _, err = run([*SIM, "-o", tmp_path / "x.npy"], capsys)
+    assert code == 0, err
+    assert listing(tmp_path) == ["x.npy"]
