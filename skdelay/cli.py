@@ -7,7 +7,11 @@ checks the input, checks the output path) and then *runs*; a problem found
 while preparing is a usage/input error (exit status 2), one while running is
 a failure (exit status 1).  Either way a single line on stderr says what to
 fix, and nothing is written: outputs are built in a temporary file or
-directory next to the target and renamed into place at the end.
+directory next to the target and renamed into place at the end.  A run killed
+with ``kill -9`` leaves only such a hidden ``.NAME.skd<pid>...tmp``, which the
+next run into the same directory removes (once its owner process is gone).
+Every output directory holds a ``.skdelay-output`` marker, and ``--force``
+replaces only directories that have it.
 """
 
 from __future__ import annotations
@@ -167,7 +171,8 @@ def build_parser():
 
     common_out = argparse.ArgumentParser(add_help=False)
     common_out.add_argument("--force", action="store_true",
-                            help="replace the output directory if it exists (atomically)")
+                            help="replace the output directory if it exists and skdelay "
+                                 "wrote it (atomically)")
     common_out.add_argument("--quiet", "-q", action="store_true",
                             help="no progress display, only the summary")
     common_out.add_argument("--n-jobs", type=_n_jobs, default=None, metavar="J",

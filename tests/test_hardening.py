@@ -523,3 +523,10 @@ def test_stale_leftovers_go_even_when_the_next_run_fails(tmp_path, capsys):
     code, _, err = run([*SIM, "-o", tmp_path / "x.npy"], capsys)
     assert code == 0, err
     assert listing(tmp_path) == ["x.npy"]
+
+
+def test_runs_that_would_hang_are_refused_up_front(tmp_path, capsys):
+    code, _, err = run(["simulate", "mackey_glass", "--n", 50_000_000, "--dt", 1000,
+                        "-o", tmp_path / "x.npy"], capsys)
+    assert_usage_error(code, err, "integration steps", "use fewer samples")
+    assert listing(tmp_path) == []

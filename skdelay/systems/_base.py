@@ -24,6 +24,9 @@ _CHUNK_STEPS = 1 << 18  # integration steps per noise chunk (memory bound)
 #: generous multiple of a system's a-priori amplitude before a run counts as diverged
 #: (the attractors stay well inside it; noise and drift only add a few widths)
 _BOUND_FACTOR = 1e3
+#: most RK4 steps one simulate() call may take (~minutes with the numba kernels): beyond
+#: it the run would look like a hang, so say which argument to change instead
+_MAX_STEPS = 10_000_000_000
 #: a-priori amplitude used when a system declares none
 _DEFAULT_SCALE = 1e6
 
@@ -333,6 +336,13 @@ class DelaySystem:
         if not (math.isfinite(noise) and noise >= 0):
             raise ValueError(f"dynamical_noise must be a non-negative number, got {noise}.")
         transient = self._transient(transient, max(start["tau"], end["tau"]))
+        n_steps = (math.ceil(transient / (every * dt) - 1e-9) + n_samples) * every
+        if n_steps > _MAX_STEPS:
+            raise ValueError(
+                f"this run needs {n_steps:.3g} integration steps of dt={dt:g} (n_samples="
+                f"{n_samples}, sample_dt={sample_dt:g}, transient={transient:g}); more than "
+                f"{_MAX_STEPS:.0e} - use fewer samples, a smaller sample_dt or a shorter transient."
+            )
         return n_samples, start, end, drift, dt, every, noise, transient
 
     def check_simulation(self, n_samples, *, sample_dt=1.0, dynamical_noise=0.0,
