@@ -19,11 +19,41 @@ from __future__ import annotations
 import argparse
 import math
 import re
+import signal
 import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 EXIT_OK, EXIT_FAILURE, EXIT_USAGE = 0, 1, 2
+#: shell convention 128 + signal number
+EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143
+
+
+class _Terminated(BaseException):
+    """Raised by the SIGTERM handler so that ``finally`` blocks remove temporaries."""
+
+
+def _on_sigterm(signum, frame):
+    raise _Terminated
+
+
+@contextmanager
+def _sigterm_unwinds():
+    """Turn SIGTERM into an exception for the duration of a run (main thread only).
+
+    The default action kills the process on the spot, leaving the hidden
+    temporary output behind until the next run; unwinding removes it now.
+    """
+    try:
+        previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    except (ValueError, OSError, AttributeError):  # not the main thread / no SIGTERM
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 class UsageError(ValueError):
@@ -524,10 +554,14 @@ def main(argv=None):
         print(f"{prog}: error: {_one_line(exc)}", file=sys.stderr)
         return EXIT_USAGE
     try:
-        run()
+        with _sigterm_unwinds():
+            run()
     except KeyboardInterrupt:
         print(f"{prog}: interrupted; nothing was written", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
+    except _Terminated:
+        print(f"{prog}: terminated; nothing was written", file=sys.stderr)
+        return EXIT_TERMINATED
     except UsageError as exc:
         print(f"{prog}: error: {_one_line(exc)}", file=sys.stderr)
         return EXIT_USAGE

@@ -557,3 +557,20 @@ def test_runs_that_would_hang_are_refused_up_front(tmp_path, capsys):
                         "-o", tmp_path / "x.npy"], capsys)
     assert_usage_error(code, err, "integration steps", "use fewer samples")
     assert listing(tmp_path) == []
+
+
+@pytest.mark.slow
+def test_sigterm_removes_the_temporary_at_once(tmp_path):
+    target = tmp_path / "mg.csv"
+    argv = [sys.executable, "-m", "skdelay.cli", *SIM[:2], "--n", "300000", "--dt", "0.05",
+            "-o", str(target)]
+    proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while not _temporaries(tmp_path) and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.005)
+    assert proc.poll() is None, "the run ended before writing: nothing to test"
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143, err
+    assert "terminated; nothing was written" in err
+    assert listing(tmp_path) == []  # no need to wait for the next run
