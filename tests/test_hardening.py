@@ -502,8 +502,8 @@ def test_invalid_parameters_fail_at_the_call(call, error, needles):
         assert needle in str(info.value), str(info.value)
 
 
-def test_cross_prediction_by_region_cells_match_a_loop():
-    # the vectorised cell statistics equal the per-cell loop they replace
+def test_cross_prediction_by_region_counts_every_row_once():
+    # the vectorised cell statistics (one bincount pass) cover every predicted row
     where = validation.cross_prediction_by_region(X, Y, m=2, tau=2, n_regions=3, random_state=0)
     # every predicted row (one per lag window with a next value) lies in exactly one cell
     assert where["count"].sum() == len(X) - required_lags(2, 2)
