@@ -5,9 +5,14 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import find_peaks
 
-from skdelay._checks import check_positive_int, check_series
+from skdelay._checks import Interval, check_params, check_positive_int, check_series, standardise
 
 __all__ = ["autocorrelation", "mutual_information", "revival_peak"]
+
+#: the joint histogram has n_bins^2 int64 cells: 4096 bins = 128 MiB, and a series
+#: fills such fine bins only with > 1e8 samples
+MAX_MI_BINS = 4096
+_MI_BINS = Interval("int", 2, MAX_MI_BINS, hint="bins per axis (16..64 is typical)")
 
 
 def _check_lag(max_lag, n):
@@ -46,7 +51,8 @@ def autocorrelation(series, max_lag):
     """
     s = check_series(series, name="series")
     max_lag = _check_lag(max_lag, s.size)
-    x = s - s.mean()
+    # standardised: the products below would overflow (|s| ~ 1e200) or underflow (1e-200)
+    x = standardise(s)[0]
     nfft = 1 << int(np.ceil(np.log2(2 * s.size - 1)))
     f = np.fft.rfft(x, nfft)
     acov = np.fft.irfft(f * np.conj(f), nfft)[: max_lag + 1]
@@ -84,7 +90,7 @@ def mutual_information(series, max_lag, *, n_bins=16):
     """
     s = check_series(series, name="series")
     max_lag = _check_lag(max_lag, s.size)
-    n_bins = check_positive_int(n_bins, name="n_bins", minimum=2)
+    n_bins = check_params(n_bins=(n_bins, _MI_BINS))
     lo, hi = s.min(), s.max()
     idx = np.minimum(((s - lo) / (hi - lo) * n_bins).astype(np.intp), n_bins - 1)
     out = np.empty(max_lag + 1)
@@ -138,6 +144,7 @@ def revival_peak(curve, *, min_lag=1, prominence=None):
     if c.ndim != 1 or not np.all(np.isfinite(c)):
         raise ValueError("curve must be a finite 1-D array (values at lags 0, 1, ...).")
     min_lag = check_positive_int(min_lag, name="min_lag", minimum=0)
+    prominence = check_params(prominence=prominence)
     tail = c[min_lag:]
     if tail.size < 3:
         raise ValueError(f"curve needs at least 3 values beyond min_lag={min_lag}.")

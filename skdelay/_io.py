@@ -10,20 +10,28 @@ what to fix, so the command line can report it and exit with status 2.
 
 from __future__ import annotations
 
+import json
+import math
 import os
 import re
 import shutil
-import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from ._atomic import atomic_path
+from ._atomic import (
+    atomic_path,
+    check_writable,
+    clean_stale_temporaries,
+    make_temporary,
+    write_text,
+)
 from ._checks import check_series
 
-__all__ = ["atomic_directory", "check_output_directory", "read_series", "read_table",
+__all__ = ["OUTPUT_MARKER", "Unavailable", "atomic_directory", "check_output_directory",
+           "dumps_strict", "is_skdelay_output", "read_series", "read_table", "write_json",
            "write_series"]
 
 _TEXT_SUFFIXES = {".csv", ".txt", ".dat", ".tsv", ".asc", ""}
@@ -177,7 +185,9 @@ def read_series(path, column=None, *, min_length=2):
     Returns
     -------
     pandas.Series
-        float64 values, named after the column.
+        float64 values, named after the column; indexed by the file's
+        ``DatetimeIndex`` / ``TimedeltaIndex`` when it has one (parquet
+        written by pandas), else by ``0..n-1``.
 
     Raises
     ------
@@ -213,7 +223,10 @@ def read_series(path, column=None, *, min_length=2):
                               min_length=min_length)
     except (ValueError, TypeError) as exc:
         raise type(exc)(str(exc).replace("\n", " ")) from exc
-    return pd.Series(values, name=str(name))
+    # a time index (parquet written from pandas) carries the sampling step: keep it
+    # so that the caller can read it with skdelay._checks.sample_dt_from_index
+    index = frame.index if isinstance(frame.index, (pd.DatetimeIndex, pd.TimedeltaIndex)) else None
+    return pd.Series(values, index=index, name=str(name))
 
 
 def write_series(path, values, *, name="x", comment=None):
@@ -249,14 +262,58 @@ def write_series(path, values, *, name="x", comment=None):
     return path
 
 
+#: file skdelay writes into every output directory it creates; ``--force`` only
+#: replaces directories that hold it, so a mistyped ``--out ~/thesis`` never deletes
+#: anything skdelay did not write.
+OUTPUT_MARKER = ".skdelay-output"
+
+
+def is_skdelay_output(path):
+    """True when ``path`` is a directory that skdelay wrote (it holds :data:`OUTPUT_MARKER`)."""
+    return (Path(path) / OUTPUT_MARKER).is_file()
+
+
 def check_output_directory(path, *, force=False):
-    """Raise ``ValueError`` if ``path`` exists, is not empty and ``force`` is off."""
+    """Check, before any work, that ``path`` can become an output directory.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The ``--out`` directory.
+    force : bool
+        Allow replacing an existing non-empty directory -- only one that
+        skdelay wrote (it holds :data:`OUTPUT_MARKER`).
+
+    Returns
+    -------
+    pathlib.Path
+
+    Notes
+    -----
+    Also removes the stale temporaries of killed runs in the parent
+    directory (see :func:`skdelay._atomic.clean_stale_temporaries`).
+
+    Raises
+    ------
+    ValueError
+        ``path`` is a file, a non-empty directory without ``force``, a
+        directory skdelay did not write, or neither it nor its parent can be
+        written.
+    """
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise ValueError(f"{path} exists and is not a directory; choose another --out.")
-    if path.is_dir() and any(path.iterdir()) and not force:
-        raise ValueError(f"output directory {path} already exists and is not empty; "
-                         "choose another --out or pass --force to replace it.")
+    if path.is_dir() and any(path.iterdir()):
+        if not force:
+            raise ValueError(f"output directory {path} already exists and is not empty; "
+                             "choose another --out or pass --force to replace it.")
+        if not is_skdelay_output(path):
+            raise ValueError(f"--force refuses to replace {path}: it was not written by skdelay "
+                             f"(no {OUTPUT_MARKER} file inside); choose another --out or "
+                             "delete it yourself.")
+    check_writable(path, what="--out")
+    # leftovers of killed runs go now, not only when this run writes (it may fail first)
+    clean_stale_temporaries(path.absolute().parent)
     return path
 
 
@@ -266,7 +323,11 @@ def atomic_directory(path, *, force=False):
 
     A reader sees either the old directory or the complete new one; on any
     error the temporary directory is removed and ``path`` is left untouched.
-    An existing non-empty ``path`` is only replaced when ``force`` is true.
+    After ``kill -9`` the hidden ``.NAME.skd<pid>...tmp`` stays behind until
+    the next write into the same parent, which removes it (only when its
+    owner process is gone).  The result holds the marker
+    :data:`OUTPUT_MARKER`; an existing non-empty ``path`` is only replaced
+    when ``force`` is true and ``path`` holds the marker too.
 
     Examples
     --------
@@ -276,17 +337,19 @@ def atomic_directory(path, *, force=False):
     >>> with atomic_directory(out) as tmp:
     ...     _ = (tmp / "a.txt").write_text("done")
     >>> sorted(os.listdir(out))
-    ['a.txt']
+    ['.skdelay-output', 'a.txt']
     """
     path = Path(path)
     check_output_directory(path, force=force)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
+    tmp = make_temporary(path, directory=True)
     try:
         yield tmp
+        (tmp / OUTPUT_MARKER).write_text(
+            "written by skdelay; `--force` may replace this directory\n", encoding="utf-8")
         os.chmod(tmp, 0o755)
         if path.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".old", dir=path.parent))
+            old = make_temporary(path, kind="old", directory=True)
             os.replace(path, old / "d")
             try:
                 os.replace(tmp, path)
@@ -299,3 +362,129 @@ def atomic_directory(path, *, force=False):
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+
+
+# ------------------------------------------------------------------- strict JSON
+class Unavailable:
+    """A value that could not be computed, with the reason why.
+
+    :func:`dumps_strict` writes it as ``null`` and puts the reason beside it
+    under ``"<key>_reason"``.
+
+    Parameters
+    ----------
+    reason : str
+        One line: why there is no value (and what would give one).
+    """
+
+    __slots__ = ("reason",)
+
+    def __init__(self, reason):
+        self.reason = str(reason)
+
+    def __repr__(self):
+        return f"Unavailable({self.reason!r})"
+
+
+def _plain(obj, reasons, key=None, default=None):
+    """Recursively convert ``obj`` into JSON-safe Python objects (non-finite -> None)."""
+    if isinstance(obj, Unavailable):
+        return None
+    if obj is None or isinstance(obj, (bool, str)):
+        return obj
+    if isinstance(obj, (np.bool_,)):
+        return bool(obj)
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        value = float(obj)
+        return value if math.isfinite(value) else None
+    if isinstance(obj, (complex, np.complexfloating)):
+        raise TypeError(f"cannot write the complex number {obj!r} as JSON; store its real "
+                        "part and imaginary part separately.")
+    if isinstance(obj, dict):
+        out = {}
+        for k, v in obj.items():
+            name = str(k)
+            out[name] = _plain(v, reasons, name, default)
+            reason_key = f"{name}_reason"
+            if out[name] is None and reason_key not in obj:
+                reason = (v.reason if isinstance(v, Unavailable)
+                          else (reasons or {}).get(name))
+                if reason is not None:
+                    out[reason_key] = str(reason)
+        return out
+    if isinstance(obj, (pd.Series, pd.Index)):
+        obj = obj.tolist()
+    elif isinstance(obj, pd.DataFrame):
+        return _plain(obj.to_dict(orient="list"), reasons, key, default)
+    if isinstance(obj, np.ndarray):
+        obj = obj.tolist()
+    if isinstance(obj, (list, tuple, set, frozenset)):
+        return [_plain(v, reasons, key, default) for v in obj]
+    if isinstance(obj, os.PathLike):
+        return os.fspath(obj)
+    if hasattr(obj, "to_dict"):
+        return _plain(obj.to_dict(), reasons, key, default)
+    if default is not None:
+        return _plain(default(obj), reasons, key, None)
+    raise TypeError(f"cannot write {type(obj).__name__} as JSON (at key {key!r}); convert it "
+                    "to numbers, strings, lists or dicts first.")
+
+
+def dumps_strict(obj, *, reasons=None, indent=2, default=None):
+    """Serialise ``obj`` as strict JSON (RFC 8259): NaN and infinities become ``null``.
+
+    ``json.dumps`` writes bare ``NaN`` / ``Infinity``, which JavaScript,
+    ``jq`` and most JSON parsers reject; here every non-finite float becomes
+    ``null``, and when the caller knows why (an :class:`Unavailable` value,
+    or ``reasons[key]``) the reason is written beside it as
+    ``"<key>_reason"`` (unless the dict already has that key).  numpy
+    scalars/arrays, pandas objects and paths are converted.
+
+    Parameters
+    ----------
+    obj : object
+        dicts, lists, numbers, strings, numpy/pandas objects, :class:`Unavailable`.
+    reasons : dict of str to str, optional
+        Reason for a ``null`` under a key of that name (at any depth).
+    indent : int or None, default=2
+    default : callable, optional
+        Called on objects of other types (like ``json.dumps``'s ``default``,
+        e.g. ``str``); its result is converted in turn.  Without it such
+        objects raise ``TypeError``.
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> from skdelay._io import dumps_strict, Unavailable
+    >>> print(dumps_strict({"delay": float("nan"), "m": Unavailable("no dip")}, indent=None))
+    {"delay": null, "m": null, "m_reason": "no dip"}
+    """
+    return json.dumps(_plain(obj, reasons, None, default), indent=indent, allow_nan=False)
+
+
+def write_json(path_or_file, obj, *, reasons=None, indent=2, default=None):
+    """Write ``obj`` as strict JSON (see :func:`dumps_strict`) to a path (atomically) or file.
+
+    Parameters
+    ----------
+    path_or_file : str, path-like or text file object
+    obj : object
+    reasons, indent, default
+        As in :func:`dumps_strict`.
+
+    Returns
+    -------
+    str
+        The JSON text written (without the final newline).
+    """
+    text = dumps_strict(obj, reasons=reasons, indent=indent, default=default)
+    if hasattr(path_or_file, "write"):
+        path_or_file.write(text + "\n")
+    else:
+        write_text(path_or_file, text + "\n")
+    return text

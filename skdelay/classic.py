@@ -22,7 +22,14 @@ from numba import njit
 from scipy.signal import find_peaks
 from scipy.spatial import cKDTree
 
-from ._checks import check_positive_int, check_random_state, check_series
+from ._checks import (
+    Options,
+    check_params,
+    check_positive_int,
+    check_random_state,
+    check_series,
+    standardise,
+)
 
 __all__ = [
     "CorrelationDimension",
@@ -35,6 +42,21 @@ __all__ = [
     "noise_reduction",
     "poincare_section",
 ]
+
+
+def _check_pair(name, value):
+    """Rule for a (low, high) range of radii or times: None or finite, 0 <= low < high."""
+    if value is None:
+        return None
+    try:
+        low, high = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be None or a (low, high) pair of numbers, got "
+                        f"{value!r}.") from None
+    if not (np.isfinite(low) and np.isfinite(high) and 0 <= low < high):
+        raise ValueError(f"{name} must be a finite (low, high) pair with 0 <= low < high, got "
+                         f"{value!r}; or None to choose it automatically.")
+    return low, high
 
 
 def _check_theiler(theiler_window, n_vectors):
@@ -123,8 +145,8 @@ def poincare_section(series, *, sample_dt=1.0, kind="maxima", prominence=None):
     (array([1., 1.]), array([1.57, 7.85]))
     """
     s = check_series(series, min_length=3)
-    if kind not in ("maxima", "minima"):
-        raise ValueError(f"kind must be 'maxima' or 'minima', got {kind!r}.")
+    sample_dt, kind, prominence = check_params(
+        sample_dt=sample_dt, kind=(kind, Options("maxima", "minima")), prominence=prominence)
     sign = 1.0 if kind == "maxima" else -1.0
     peaks, _ = find_peaks(sign * s, prominence=prominence)
     peaks = peaks[(peaks > 0) & (peaks < s.size - 1)]
@@ -244,8 +266,13 @@ def noise_reduction(series, *, dim=7, q=2, lag=1, n_neighbors=30, radius=None,
     k = check_positive_int(n_neighbors, name="n_neighbors", minimum=dim + 1)
     iterations = check_positive_int(iterations, name="iterations")
     s = check_series(series, min_length=(dim - 1) * lag + k + 1).copy()
-    if radius is not None and not radius > 0:
-        raise ValueError(f"radius must be positive (units of the series), got {radius!r}.")
+    radius, end_weight, workers = check_params(radius=radius, end_weight=end_weight,
+                                               workers=workers)
+    chunk_size = check_positive_int(chunk_size, name="chunk_size")
+    # local covariances square the data: standardise (the projection is equivariant
+    # under x -> a x + b) so that 1e200 or 1e-200 data neither overflow nor underflow
+    s, centre, unit = standardise(s)
+    radius = None if radius is None else radius / unit
     weights = np.ones(dim)
     weights[0] = weights[-1] = float(end_weight)
     offsets = np.arange(dim) * lag
@@ -268,7 +295,7 @@ def noise_reduction(series, *, dim=7, q=2, lag=1, n_neighbors=30, radius=None,
             total += np.bincount(target.ravel(), theta.ravel(), minlength=s.size)
             hits += np.bincount(target.ravel(), minlength=s.size)
         s += np.divide(total, hits, out=np.zeros_like(total), where=hits > 0)
-    return s
+    return s * unit + centre
 
 
 def _pair_sample_c(X, ref, radii, w, n_pairs, rng):
@@ -281,6 +308,8 @@ def _pair_sample_c(X, ref, radii, w, n_pairs, rng):
 
 
 _NBOX = 1024
+#: range / largest radius above which box indices lose integer precision (2**53)
+_MAX_BOXES_PER_RANGE = 1e15
 
 
 @njit(cache=True)
@@ -380,14 +409,31 @@ def correlation_sum(series, dim, lag=1, radii=None, *, theiler_window=0, n_refer
     True
     """
     s = check_series(series, min_length=(dim - 1) * lag + 3)
+    # distances do not change under a shift; from the minimum the box indices of the
+    # search stay small even for data with a large offset (1e200 + O(1) signals)
+    s = s - s.min()
     X = delay_embedding(s, dim, lag)
     n = X.shape[0]
     w = _check_theiler(theiler_window, n)
     if radii is None:
         radii = np.ptp(s) * np.geomspace(1e-3, 1.0, 40)
-    radii = np.asarray(radii, dtype=float).reshape(-1)
-    if radii.size == 0 or np.any(radii <= 0) or np.any(np.diff(radii) <= 0):
-        raise ValueError("radii must be positive and strictly increasing.")
+    try:
+        radii = np.asarray(radii, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise TypeError(f"radii must be an array of numbers (in the units of the series), "
+                        f"got {radii!r}.") from None
+    # NaN compares False with everything, so test finiteness explicitly
+    if (radii.size == 0 or not np.all(np.isfinite(radii)) or np.any(radii <= 0)
+            or np.any(np.diff(radii) <= 0)):
+        raise ValueError(f"radii must be finite, positive and strictly increasing (in the "
+                         f"units of the series), got {radii!r}.")
+    random_state, workers = check_params(random_state=random_state, workers=workers)
+    if np.ptp(s) / radii[-1] > _MAX_BOXES_PER_RANGE:
+        raise ValueError(
+            f"the largest radius {radii[-1]:.3g} is below {1 / _MAX_BOXES_PER_RANGE:.0e} times "
+            f"the range {np.ptp(s):.3g} of the series, beyond float64 resolution; pass radii in "
+            "the units of the series (the default spans 1e-3..1 times its range)."
+        )
     rng = check_random_state(random_state)
     ref = _reference_points(n, n_reference, rng)
     level = np.zeros(radii.size, dtype=int)
@@ -488,6 +534,8 @@ def correlation_dimension(series, dims=range(1, 9), lag=1, *, radii=None, theile
     """
     dims = [check_positive_int(d, name="dims") for d in np.atleast_1d(dims)]
     n_converged = min(check_positive_int(n_converged, name="n_converged"), len(dims))
+    min_pairs, random_state = check_params(min_pairs=min_pairs, random_state=random_state)
+    scaling_range = check_params(scaling_range=(scaling_range, _check_pair))
     s = check_series(series, min_length=(max(dims) - 1) * lag + 3)
     if radii is None:
         radii = np.ptp(s) * np.geomspace(1e-3, 1.0, 48)
@@ -678,9 +726,14 @@ def maximal_lyapunov_exponent(series, *, dim, lag=1, theiler_window=0, sample_dt
     lag = check_positive_int(lag, name="lag")
     max_steps = check_positive_int(max_steps, name="max_steps")
     k = check_positive_int(n_neighbors, name="n_neighbors")
-    if not sample_dt > 0:
-        raise ValueError(f"sample_dt must be positive, got {sample_dt!r}.")
+    sample_dt, radius, random_state, workers = check_params(
+        sample_dt=sample_dt, radius=radius, random_state=random_state, workers=workers)
+    fit_range = check_params(fit_range=(fit_range, _check_pair))
     s = check_series(series, min_length=(dim - 1) * lag + max_steps + 10)
+    # the k-d tree squares distances (overflow at 1e200): work in units of the std; the
+    # divergence S = <ln distance> then shifts by ln(std), the slope does not change
+    s, _, unit = standardise(s)
+    radius = None if radius is None else radius / unit
     X = delay_embedding(s, dim, lag)
     usable = X.shape[0] - max_steps
     w = _check_theiler(theiler_window, usable)
@@ -704,7 +757,7 @@ def maximal_lyapunov_exponent(series, *, dim, lag=1, theiler_window=0, sample_dt
     nbrs = -np.ones((ref.size, k), dtype=np.int64)
     rows = np.broadcast_to(np.arange(ref.size)[:, None], idx.shape)
     nbrs[rows[valid], pos[valid]] = idx[valid]
-    S = _divergence(X, ref.astype(np.int64), nbrs, max_steps)
+    S = _divergence(X, ref.astype(np.int64), nbrs, max_steps) + np.log(unit)
     t = np.arange(max_steps + 1) * float(sample_dt)
     if fit_range is None:
         fit_range = _auto_fit_range(t, S)
@@ -755,8 +808,13 @@ def false_nearest_neighbors(series, *, max_dim=10, lag=1, rtol=10.0, atol=2.0,
     """
     max_dim = check_positive_int(max_dim, name="max_dim")
     lag = check_positive_int(lag, name="lag")
+    rtol, atol, random_state, workers = check_params(
+        rtol=rtol, atol=atol, random_state=random_state, workers=workers)
     s = check_series(series, min_length=max_dim * lag + 10)
-    ra = s.std()
+    # both criteria are ratios of distances: standardising changes nothing but keeps the
+    # k-d tree's squared distances finite for data of any scale
+    s = standardise(s)[0]
+    ra = 1.0
     rng = check_random_state(random_state)
     out = []
     for d in range(1, max_dim + 1):

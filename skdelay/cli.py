@@ -7,20 +7,53 @@ checks the input, checks the output path) and then *runs*; a problem found
 while preparing is a usage/input error (exit status 2), one while running is
 a failure (exit status 1).  Either way a single line on stderr says what to
 fix, and nothing is written: outputs are built in a temporary file or
-directory next to the target and renamed into place at the end.
+directory next to the target and renamed into place at the end.  A run killed
+with ``kill -9`` leaves only such a hidden ``.NAME.skd<pid>...tmp``, which the
+next run into the same directory removes (once its owner process is gone).
+Every output directory holds a ``.skdelay-output`` marker, and ``--force``
+replaces only directories that have it.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import re
+import signal
 import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 EXIT_OK, EXIT_FAILURE, EXIT_USAGE = 0, 1, 2
+#: shell convention 128 + signal number
+EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143
+
+
+class _Terminated(BaseException):
+    """Raised by the SIGTERM handler so that ``finally`` blocks remove temporaries."""
+
+
+def _on_sigterm(signum, frame):
+    raise _Terminated
+
+
+@contextmanager
+def _sigterm_unwinds():
+    """Turn SIGTERM into an exception for the duration of a run (main thread only).
+
+    The default action kills the process on the spot, leaving the hidden
+    temporary output behind until the next run; unwinding removes it now.
+    """
+    try:
+        previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    except (ValueError, OSError, AttributeError):  # not the main thread / no SIGTERM
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 class UsageError(ValueError):
@@ -74,6 +107,34 @@ def _int_at_least(minimum):
         return value
 
     return parse
+
+
+#: numpy's legacy seeding (used by sklearn's check_random_state) takes 0 <= seed < 2**32
+_MAX_SEED = 2**32 - 1
+
+
+def _seed(text):
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer seed, got {text!r}") from None
+    if not 0 <= value <= _MAX_SEED:
+        raise argparse.ArgumentTypeError(
+            f"the seed must be between 0 and 2**32 - 1 = {_MAX_SEED}, got {value}")
+    return value
+
+
+def _n_jobs(text):
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected an integer number of workers (-1 = all cores), got {text!r}") from None
+    if value == 0:
+        # joblib: positive = that many workers, -1 = all cores, -2 = all but one, ...
+        raise argparse.ArgumentTypeError(
+            "0 workers cannot run anything; use 1 (serial), J > 1, or -1 for all cores")
+    return value
 
 
 def parse_m(text):
@@ -140,13 +201,15 @@ def build_parser():
 
     common_out = argparse.ArgumentParser(add_help=False)
     common_out.add_argument("--force", action="store_true",
-                            help="replace the output directory if it exists (atomically)")
+                            help="replace the output directory if it exists and skdelay "
+                                 "wrote it (atomically)")
     common_out.add_argument("--quiet", "-q", action="store_true",
                             help="no progress display, only the summary")
-    common_out.add_argument("--n-jobs", type=int, default=None, metavar="J",
+    common_out.add_argument("--n-jobs", type=_n_jobs, default=None, metavar="J",
                             help="parallel workers (joblib; -1 = all cores; default: all "
                                  "cores for big scans)")
-    common_out.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    common_out.add_argument("--seed", type=_seed, default=0,
+                            help="random seed, 0..2**32-1 (default 0)")
 
     an = sub.add_parser(
         "analyze", parents=[common_out],
@@ -157,8 +220,9 @@ def build_parser():
     an.add_argument("file", metavar="FILE", help=".npy, .csv/.txt/.dat or .parquet file")
     an.add_argument("--column", "-c", default=None,
                     help="column name or 0-based index (needed when the file has several)")
-    an.add_argument("--dt", type=_positive_float, default=1.0,
-                    help="sampling interval in your time unit (default 1)")
+    an.add_argument("--dt", type=_positive_float, default=None,
+                    help="sampling interval in your time unit (default: the step in seconds "
+                         "of the file's time index, if it has one, else 1)")
     an.add_argument("--m", type=parse_m, default=(2, 3, 4, 5), metavar="M",
                     help="window lengths: 3, 2,3,5 or 2..5 (default 2..5)")
     an.add_argument("--tau-min", type=_int_at_least(1), default=1, metavar="N",
@@ -230,7 +294,7 @@ def build_parser():
                     help="quantise with a B-bit ADC over the signal range")
     si.add_argument("--dynamical-noise", type=_nonneg_float, default=0.0, metavar="S",
                     help="dynamical noise strength (default 0)")
-    si.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    si.add_argument("--seed", type=_seed, default=0, help="random seed, 0..2**32-1 (default 0)")
     si.add_argument("-o", "--output", default=None, metavar="FILE",
                     help="output file (.npy, .csv or .txt)")
     si.add_argument("--force", action="store_true", help="overwrite FILE if it exists")
@@ -257,10 +321,13 @@ def _progress(args):
 
 def _prepare_analyze(args):
     from . import _analysis
+    from ._checks import resolve_sample_dt
     from ._io import check_output_directory, read_series
 
     check_output_directory(args.out, force=args.force)
     series = read_series(args.file, args.column)
+    # a regular time index gives the step in seconds; an irregular one is an input error
+    args.dt = resolve_sample_dt(series, args.dt)
     options = _analysis.check_options(
         series.to_numpy(), m=args.m, tau_min=args.tau_min, tau_max=args.tau_max,
         sample_dt=args.dt, n_queries=args.n_queries,
@@ -339,6 +406,10 @@ def _prepare_gap(args):
         raise UsageError("gap compares against a fixed simulator; give --param K=V without a "
                          "start:end drift")
     real = read_series(args.real, args.column, min_length=2)
+    try:  # the simulator must be able to produce a series like REAL (delay resolution, ...)
+        system.check_simulation(real.size, sample_dt=args.dt)
+    except (TypeError, ValueError) as exc:
+        raise UsageError(_one_line(exc)) from exc
     effects = None
     if args.effects:
         from .gap import EFFECTS
@@ -350,7 +421,7 @@ def _prepare_gap(args):
                              f"{', '.join(sorted(EFFECTS))}")
 
     def run():
-        from ._io import atomic_directory
+        from ._io import atomic_directory, write_json
         from .gap import diagnose_gap
 
         say = _progress(args)
@@ -367,10 +438,11 @@ def _prepare_gap(args):
             report.effects.to_csv(tmp / "effects.csv", index=False)
             report.where.to_csv(tmp / "where.csv", index=False)
             (tmp / "summary.txt").write_text(summary + "\n", encoding="utf-8")
-            (tmp / "results.json").write_text(json.dumps({
+            write_json(tmp / "results.json", {
                 "real": str(args.real), "system": system.name, "params": system.params,
                 "sample_dt": args.dt, "best_effect": report.best_effect,
-            }, indent=2, default=float) + "\n", encoding="utf-8")
+            }, reasons={"best_effect": "real and simulated data are indistinguishable "
+                                       "within the sim-vs-sim spread"})
         print(summary)
         print(f"report in {args.out}/report.html")
 
@@ -388,6 +460,8 @@ def _list_systems():
 
 
 def _prepare_simulate(args):
+    from ._atomic import check_writable, clean_stale_temporaries
+
     if args.list:
         return lambda: print(_list_systems())
     if args.name is None:
@@ -399,25 +473,36 @@ def _prepare_simulate(args):
     out = Path(args.output)
     if out.suffix.lower() not in {".npy", ".csv", ".txt", ".dat"}:
         raise UsageError(f"-o {out}: name the output *.npy, *.csv or *.txt")
-    if out.exists() and not args.force:
-        raise UsageError(f"{out} exists; choose another -o FILE or pass --force to overwrite it")
     if out.is_dir():
         raise UsageError(f"{out} is a directory; give a file name")
+    if out.exists() and not args.force:
+        raise UsageError(f"{out} exists; choose another -o FILE or pass --force to overwrite it")
     if args.bits is not None and args.bits > 32:
         raise UsageError(f"--bits {args.bits} is more than a real ADC has; use 8..24")
     system, drift = _system(args.name, parse_params(args.param))
     if args.n > 50_000_000:
         raise UsageError(f"--n {args.n} is too many samples for one file; use at most 5e7")
+    try:
+        # every check simulate() makes (delay resolution, drift ends, ...) before any work
+        system.check_simulation(args.n, sample_dt=args.dt,
+                                dynamical_noise=args.dynamical_noise, **drift)
+        check_writable(out, what="-o")
+    except (TypeError, ValueError) as exc:
+        raise UsageError(_one_line(exc)) from exc
+    clean_stale_temporaries(out.absolute().parent)  # leftovers of killed runs
 
     def run():
         from ._io import write_series
-        from .systems import measure
+        from .systems import DivergenceError, measure
 
-        x = system.simulate(args.n, sample_dt=args.dt, random_state=args.seed,
-                            dynamical_noise=args.dynamical_noise, **drift)
+        try:
+            x = system.simulate(args.n, sample_dt=args.dt, random_state=args.seed,
+                                dynamical_noise=args.dynamical_noise, **drift)
+        except DivergenceError as exc:  # the parameters given are the thing to change
+            raise UsageError(_one_line(exc)) from exc
         if args.noise > 0 or args.bits is not None:
             x = measure(x, noise=args.noise, bits=args.bits, normalise=False,
-                        random_state=args.seed + 1)
+                        random_state=(args.seed + 1) % (_MAX_SEED + 1))
         comment = (f"skdelay simulate {system!r} n={args.n} sample_dt={args.dt} "
                    f"noise={args.noise} bits={args.bits} seed={args.seed}")
         write_series(out, x, name=system.name, comment=comment)
@@ -469,10 +554,14 @@ def main(argv=None):
         print(f"{prog}: error: {_one_line(exc)}", file=sys.stderr)
         return EXIT_USAGE
     try:
-        run()
+        with _sigterm_unwinds():
+            run()
     except KeyboardInterrupt:
         print(f"{prog}: interrupted; nothing was written", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
+    except _Terminated:
+        print(f"{prog}: terminated; nothing was written", file=sys.stderr)
+        return EXIT_TERMINATED
     except UsageError as exc:
         print(f"{prog}: error: {_one_line(exc)}", file=sys.stderr)
         return EXIT_USAGE

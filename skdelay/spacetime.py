@@ -15,7 +15,10 @@ import numbers
 import numpy as np
 import pandas as pd
 
-from ._checks import check_positive_int, check_series
+from ._checks import Interval, check_params, check_series, standardise
+
+#: columns per sample of the period beyond which space_time only adds interpolated points
+MAX_COLUMNS_PER_SAMPLE = 16
 
 __all__ = ["best_space_time_period", "space_time"]
 
@@ -75,10 +78,10 @@ def space_time(series, period, *, n_columns=None, start=0.0):
     period = _check_period(period, s.size)
     if n_columns is None:
         n_columns = max(1, round(period))
-    n_columns = check_positive_int(n_columns, name="n_columns")
-    start = float(start)
-    if not 0.0 <= start < s.size - 1:
-        raise ValueError(f"start must lie in [0, {s.size - 1}), got {start}.")
+    n_columns = check_params(n_columns=(n_columns, Interval(
+        "int", 1, MAX_COLUMNS_PER_SAMPLE * max(1, round(period)),
+        hint=f"more than {MAX_COLUMNS_PER_SAMPLE} columns per sample only interpolate")))
+    start = check_params(start=(start, Interval("real", 0, s.size - 1, closed="left")))
     sigma = np.arange(n_columns) * (period / n_columns)
     n_rows = int(np.floor((s.size - 1 - start - sigma[-1]) / period)) + 1
     if n_rows < 1:
@@ -127,6 +130,8 @@ def best_space_time_period(series, candidates):
     37.3
     """
     s = check_series(series, min_length=5)
+    # the scores multiply samples: standardise so that 1e200 data do not overflow
+    s = standardise(s)[0]
     cand = np.asarray(candidates, dtype=float).reshape(-1)
     if cand.size == 0:
         raise ValueError("candidates is empty; pass the periods (in samples) to try.")

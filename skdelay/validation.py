@@ -22,7 +22,15 @@ import numpy as np
 import pandas as pd
 from scipy.signal import welch
 
-from ._checks import check_positive_int, check_random_state, check_series
+from ._checks import (
+    Interval,
+    Options,
+    check_params,
+    check_positive_int,
+    check_random_state,
+    check_series,
+    standardise,
+)
 from ._correlation import autocorrelation, mutual_information, revival_peak
 from ._embedding import required_lags, two_window_columns
 from ._local_linear import LocalLinearDelayMap
@@ -73,6 +81,30 @@ def _where(low, high, xv, yv):
     return df.iloc[order].reset_index(drop=True)
 
 
+#: smallest normal float64: a power below it has lost its precision
+_TINY = float(np.finfo(np.float64).tiny)
+#: most quantile bins per axis of cross_prediction_by_region (2500 cells)
+MAX_REGIONS = 50
+_REGIONS = Interval("int", 1, MAX_REGIONS,
+                    hint="the number of quantile bins per axis (each of the n_regions^2 cells "
+                         "needs points of its own; 2..5 is typical)")
+
+
+def _check_range(name, value):
+    """Rule for a histogram ``range``: None or finite (low, high) with low < high."""
+    if value is None:
+        return None
+    try:
+        low, high = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be None or a (low, high) pair of numbers, got "
+                        f"{value!r}.") from None
+    if not (np.isfinite(low) and np.isfinite(high) and low < high):
+        raise ValueError(f"{name} must be a finite (low, high) pair with low < high, got "
+                         f"{value!r}.")
+    return low, high
+
+
 # --------------------------------------------------------------------------- cross prediction
 def _cross_residuals(x, y, *, m, tau, order, n_neighbors, theiler_window, n_queries,
                      random_state, ridge, radius, n_jobs):
@@ -80,9 +112,14 @@ def _cross_residuals(x, y, *, m, tau, order, n_neighbors, theiler_window, n_quer
     m = check_positive_int(m, name="m")
     tau = check_positive_int(tau, name="tau")
     k = check_positive_int(n_neighbors, name="n_neighbors")
+    check_params(ridge=ridge, radius=radius, random_state=random_state, n_jobs=n_jobs)
     n_lags = required_lags(m, tau)
     cols = two_window_columns(m, tau)
     sx = check_series(x, name="x", min_length=n_lags + 2)
+    # neighbour searches and local fits square the data: work in units of x's std (the
+    # same affine map for x and y, so chi does not change) and map back where reported
+    sx, centre, scale = standardise(sx)
+    radius = None if radius is None else radius / scale
     Xx, tx = lagged_windows(sx, n_lags)
     Vx = Xx[:, cols]
     n_rows = Vx.shape[0]
@@ -105,11 +142,13 @@ def _cross_residuals(x, y, *, m, tau, order, n_neighbors, theiler_window, n_quer
         model.set_params(theiler_window=w).fit(Vx, tx)
         pred = model.predict(Vx[rows], query_index=rows)
     else:
-        sy = check_series(y, name="y", min_length=n_lags + k + 1)
+        sy = (check_series(y, name="y", min_length=n_lags + k + 1) - centre) / scale
         Xy, ty = lagged_windows(sy, n_lags)
         model.fit(Xy[:, cols], ty)
         pred = model.predict(Vx[rows])
-    return rows, Xx, pred - tx[rows], sx.std()
+    # residuals in units of std(x); Xx stays standardised (no copy of the lag matrix),
+    # (centre, scale) maps it back to the units of x
+    return rows, Xx, pred - tx[rows], (centre, scale)
 
 
 def cross_prediction_error(x, y=None, *, m, tau, order=0, n_neighbors=30,
@@ -167,11 +206,11 @@ def cross_prediction_error(x, y=None, *, m, tau, order=0, n_neighbors=30,
     >>> bool(abs(chi_xy / chi_xx - 1) < 0.3)
     True
     """
-    _, _, resid, scale = _cross_residuals(
+    _, _, resid, _ = _cross_residuals(
         x, y, m=m, tau=tau, order=order, n_neighbors=n_neighbors, theiler_window=theiler_window,
         n_queries=n_queries, random_state=random_state, ridge=ridge, radius=radius,
         n_jobs=n_jobs)
-    return float(np.sqrt(np.mean(resid ** 2)) / scale)
+    return float(np.sqrt(np.mean(resid ** 2)))  # residuals are in units of std(x)
 
 
 def cross_prediction_by_region(x, y, *, m, tau, order=0, n_neighbors=30, theiler_window="auto",
@@ -192,7 +231,8 @@ def cross_prediction_by_region(x, y, *, m, tau, order=0, n_neighbors=30, theiler
     m, tau, order, n_neighbors, theiler_window, n_queries, ridge, radius, random_state, n_jobs
         As in :func:`cross_prediction_error`.
     n_regions : int, default=3
-        Quantile bins per axis.
+        Quantile bins per axis, at most ``MAX_REGIONS`` (50: 2500 cells, more
+        than any series fills with enough points for an error estimate).
 
     Returns
     -------
@@ -215,7 +255,7 @@ def cross_prediction_by_region(x, y, *, m, tau, order=0, n_neighbors=30, theiler
     if y is None:
         raise ValueError("cross_prediction_by_region compares x with a database y; pass y "
                          "(for the error of x alone use cross_prediction_error(x)).")
-    n_regions = check_positive_int(n_regions, name="n_regions")
+    n_regions = check_params(n_regions=(n_regions, _REGIONS))
     kw = {"m": m, "tau": tau, "order": order, "n_neighbors": n_neighbors,
           "theiler_window": theiler_window, "n_queries": n_queries, "ridge": ridge,
           "radius": radius, "n_jobs": n_jobs}
@@ -225,18 +265,22 @@ def cross_prediction_by_region(x, y, *, m, tau, order=0, n_neighbors=30, theiler
     now, delayed = col_now[rows], col_del[rows]
     q = np.linspace(0.0, 1.0, n_regions + 1)
     e_now, e_del = np.quantile(col_now, q), np.quantile(col_del, q)
+    centre, unit = scale
+    scale = 1.0  # residuals are in units of std(x)
     i_now = np.clip(np.searchsorted(e_now, now, side="right") - 1, 0, n_regions - 1)
     i_del = np.clip(np.searchsorted(e_del, delayed, side="right") - 1, 0, n_regions - 1)
-    out = []
-    for a in range(n_regions):
-        for b in range(n_regions):
-            cell = (i_now == a) & (i_del == b)
-            n_cell = int(cell.sum())
-            chi = np.sqrt(np.mean(resid[cell] ** 2)) / scale if n_cell else np.nan
-            chi_self = np.sqrt(np.mean(resid_self[cell] ** 2)) / scale if n_cell else np.nan
-            out.append((e_now[a], e_now[a + 1], e_del[b], e_del[b + 1], n_cell, chi, chi_self))
-    df = pd.DataFrame(out, columns=["low", "high", "delayed_low", "delayed_high", "count",
-                                    "chi", "chi_self"])
+    # one pass over the rows for all cells (a loop over cells costs n_regions^2 passes)
+    cell = i_now * n_regions + i_del
+    n_cells = n_regions * n_regions
+    count = np.bincount(cell, minlength=n_cells)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        chi = np.sqrt(np.bincount(cell, resid ** 2, minlength=n_cells) / count) / scale
+        chi_self = np.sqrt(np.bincount(cell, resid_self ** 2, minlength=n_cells) / count) / scale
+    a, b = np.divmod(np.arange(n_cells), n_regions)
+    e_now, e_del = e_now * unit + centre, e_del * unit + centre  # units of x
+    df = pd.DataFrame({"low": e_now[a], "high": e_now[a + 1], "delayed_low": e_del[b],
+                       "delayed_high": e_del[b + 1], "count": count, "chi": chi,
+                       "chi_self": chi_self})
     df["excess"] = df["chi"] - df["chi_self"]
     return df.sort_values("excess", ascending=False, na_position="last").reset_index(drop=True)
 
@@ -269,10 +313,22 @@ def power_spectrum(x, *, sample_dt=1.0, nperseg=1024):
     0.102
     """
     s = check_series(x, name="x", min_length=8)
-    if not sample_dt > 0:
-        raise ValueError(f"sample_dt must be positive, got {sample_dt!r}.")
+    sample_dt = check_params(sample_dt=sample_dt)
     nperseg = min(check_positive_int(nperseg, name="nperseg", minimum=8), s.size)
-    return welch(s, fs=1.0 / sample_dt, nperseg=nperseg, detrend="constant")
+    # welch squares the data: compute on x / c and scale back, so that only a power
+    # that float64 cannot hold (not an intermediate) is a problem
+    c = float(np.max(np.abs(s)))
+    f, psd = welch(s / c, fs=1.0 / sample_dt, nperseg=nperseg, detrend="constant")
+    with np.errstate(over="ignore", under="ignore"):
+        power = c * c
+    if not _TINY <= power < np.inf:
+        raise ValueError(
+            f"the power spectrum of x (amplitude ~{c:.3g}) is outside float64 (power ~ x^2 "
+            f"= {c:.1e}^2); rescale x (e.g. x / x.std()) or use spectrum_distance, which "
+            "compares spectra at any scale."
+        )
+    psd = psd * power
+    return f, psd
 
 
 def value_histogram(x, *, bins=50, range=None):
@@ -301,12 +357,13 @@ def value_histogram(x, *, bins=50, range=None):
     array([1., 1., 1., 1.])
     """
     s = check_series(x, name="x", allow_constant=range is not None)
+    bins, range = check_params(bins=bins, range=(range, _check_range))
     density, edges = np.histogram(s, bins=bins, range=range, density=True)
     return edges, density
 
 
 def _standardise(s, normalise):
-    return (s - s.mean()) / s.std() if normalise else s
+    return standardise(s)[0] if normalise else s
 
 
 def histogram_distance(x, y, *, bins=50, range=None, normalise=False, metric="hellinger"):
@@ -342,8 +399,9 @@ def histogram_distance(x, y, *, bins=50, range=None, normalise=False, metric="he
     >>> bool(same.distance < 0.05 < shifted.distance)
     True
     """
-    if metric not in ("hellinger", "total_variation"):
-        raise ValueError(f"metric must be 'hellinger' or 'total_variation', got {metric!r}.")
+    bins, range, metric = check_params(
+        bins=bins, range=(range, _check_range),
+        metric=(metric, Options("hellinger", "total_variation")))
     sx = check_series(x, name="x")
     sy = check_series(y, name="y")
     ax, ay = _standardise(sx, normalise), _standardise(sy, normalise)
@@ -412,8 +470,14 @@ def spectrum_distance(x, y, *, sample_dt=1.0, nperseg=1024, normalise=True, n_ba
     sx = check_series(x, name="x", min_length=16)
     sy = check_series(y, name="y", min_length=16)
     nperseg = min(check_positive_int(nperseg, name="nperseg", minimum=8), sx.size, sy.size)
-    f, px = power_spectrum(sx, sample_dt=sample_dt, nperseg=nperseg)
-    _, py = power_spectrum(sy, sample_dt=sample_dt, nperseg=nperseg)
+    sample_dt, n_bands, max_frequency = check_params(
+        sample_dt=sample_dt, n_bands=n_bands, max_frequency=max_frequency)
+    # powers go as x^2: at |x| ~ 1e200 they overflow.  Compare the spectra of x / c and
+    # y / c (the log distance does not change) and shift the reported levels back.
+    c = max(np.max(np.abs(sx)), np.max(np.abs(sy)))
+    f, px = power_spectrum(sx / c, sample_dt=sample_dt, nperseg=nperseg)
+    _, py = power_spectrum(sy / c, sample_dt=sample_dt, nperseg=nperseg)
+    shift = 0.0 if normalise else 2.0 * float(np.log10(c))
     keep = f > 0
     if max_frequency is not None:
         keep &= f <= max_frequency
@@ -429,8 +493,8 @@ def spectrum_distance(x, y, *, sample_dt=1.0, nperseg=1024, normalise=True, n_ba
     bands = _bands(f.size, n_bands)
     low = [f[b[0]] - df / 2 for b in bands]
     high = [f[b[-1]] + df / 2 for b in bands]
-    band_x = [np.log10(max(px[b].sum() * df, 1e-300)) for b in bands]
-    band_y = [np.log10(max(py[b].sum() * df, 1e-300)) for b in bands]
+    band_x = [np.log10(max(px[b].sum() * df, 1e-300)) + shift for b in bands]
+    band_y = [np.log10(max(py[b].sum() * df, 1e-300)) + shift for b in bands]
     return Comparison(float(dist), _where(low, high, band_x, band_y))
 
 
@@ -465,6 +529,7 @@ def autocorrelation_distance(x, y, *, max_lag=100, sample_dt=1.0, n_bands=10):
     sx = check_series(x, name="x")
     sy = check_series(y, name="y")
     max_lag = check_positive_int(max_lag, name="max_lag")
+    sample_dt, n_bands = check_params(sample_dt=sample_dt, n_bands=n_bands)
     ax = autocorrelation(sx, max_lag)[1:]
     ay = autocorrelation(sy, max_lag)[1:]
     lags = np.arange(1, max_lag + 1) * float(sample_dt)

@@ -111,15 +111,15 @@ def test_atomic_directory_creates_and_refuses(tmp_path):
 
 def test_atomic_directory_replace_and_failure_leave_no_half_state(tmp_path):
     out = tmp_path / "report"
-    out.mkdir()
-    (out / "old.txt").write_text("old")
+    with atomic_directory(out) as tmp:  # --force only replaces what skdelay wrote
+        (tmp / "old.txt").write_text("old")
     with pytest.raises(RuntimeError), atomic_directory(out, force=True) as tmp:
         (tmp / "new.txt").write_text("half")
         raise RuntimeError("boom")
-    assert sorted(p.name for p in out.iterdir()) == ["old.txt"]
+    assert sorted(p.name for p in out.iterdir()) == [".skdelay-output", "old.txt"]
     with atomic_directory(out, force=True) as tmp:
         (tmp / "new.txt").write_text("new")
-    assert sorted(p.name for p in out.iterdir()) == ["new.txt"]
+    assert sorted(p.name for p in out.iterdir()) == [".skdelay-output", "new.txt"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["report"]
     (tmp_path / "file").write_text("x")
     with pytest.raises(ValueError, match="not a directory"):

@@ -15,7 +15,7 @@ tangent-space Lyapunov spectrum (:mod:`._tangent`):
 
 from __future__ import annotations
 
-from ._base import DelaySystem
+from ._base import DelaySystem, DivergenceError
 from ._observation import measure
 from .co2_laser import CO2LaserFeedback
 from .electro_optic import ElectroOpticOscillator
@@ -73,6 +73,7 @@ __all__ = [
     "SYSTEMS",
     "CO2LaserFeedback",
     "DelaySystem",
+    "DivergenceError",
     "ElectroOpticOscillator",
     "Ikeda",
     "MackeyGlass",

@@ -21,6 +21,18 @@ from ._integrate import integrate_chunk, register, stencils
 from ._tangent import orthonormalise, tangent_run
 
 _CHUNK_STEPS = 1 << 18  # integration steps per noise chunk (memory bound)
+#: generous multiple of a system's a-priori amplitude before a run counts as diverged
+#: (the attractors stay well inside it; noise and drift only add a few widths)
+_BOUND_FACTOR = 1e3
+#: most RK4 steps one simulate() call may take (~minutes with the numba kernels): beyond
+#: it the run would look like a hang, so say which argument to change instead
+_MAX_STEPS = 10_000_000_000
+#: a-priori amplitude used when a system declares none
+_DEFAULT_SCALE = 1e6
+
+
+class DivergenceError(ValueError):
+    """A simulation left every plausible range: the parameters give no bounded solution."""
 
 
 class DelaySystem:
@@ -103,6 +115,24 @@ class DelaySystem:
 
     def _check_params(self, params):
         """Hook for system-specific domain checks (raise ValueError)."""
+
+    def _amplitude(self, params):
+        """A-priori amplitude of the observed component for ``params`` (hook).
+
+        :meth:`simulate` treats ``|x| > _BOUND_FACTOR * (amplitude + noise)``
+        as divergence.  Systems override it with a bound from their equations
+        (e.g. ``a / b`` for Mackey-Glass); the default is deliberately loose.
+        """
+        return _DEFAULT_SCALE
+
+    def _changed(self, params):
+        """``{name: (value, default)}`` of the parameters that differ from the defaults."""
+        try:
+            defaults = type(self)().params
+        except (TypeError, ValueError):  # pragma: no cover - systems without defaults
+            return {}
+        return {k: (v, defaults[k]) for k, v in params.items()
+                if k in defaults and v != defaults[k]}
 
     def _check_overrides(self, overrides, *, allow_drift):
         """Split overrides into (start, end) parameter dicts, validating names and values."""
@@ -193,15 +223,22 @@ class DelaySystem:
         counter = np.array([m_ring], dtype=np.int64)  # ring[m % M] = x_l(t_m), m < M
         return x, ring, counter
 
-    def _diverged(self, params, where, end=None):
+    def _diverged(self, params, where, end=None, *, what="non-finite state"):
         vals = ", ".join(
             f"{k}={v:g}" if end is None or end[k] == v else f"{k}=({v:g} -> {end[k]:g})"
             for k, v in params.items()
         )
-        return ValueError(
-            f"{type(self).__name__} diverged (non-finite state) during {where} with {vals}; "
-            "these parameters (or the noise level / integration step) give an unbounded "
-            "solution - move them back towards the documented defaults or reduce dt."
+        changed = self._changed(params)
+        if end is not None:
+            changed.update(self._changed(end))
+        if changed:
+            fix = "change " + ", ".join(f"{k} (default {d:g})" for k, (_, d) in changed.items())
+            fix += " back towards the default"
+        else:
+            fix = "lower dynamical_noise or pass a smaller dt"
+        return DivergenceError(
+            f"{type(self).__name__} diverged ({what}) during {where} with {vals}; these "
+            f"parameters give no bounded solution: {fix}."
         )
 
     def _transient(self, transient, tau):
@@ -244,16 +281,10 @@ class DelaySystem:
         ndarray of shape (n_samples,)
             The fed-back component ``x_l`` at times ``transient + i * sample_dt``.
         """
-        n_samples = check_positive_int(n_samples, name="n_samples")
-        start, end, drift = self._check_overrides(overrides, allow_drift=True)
-        dt, every = self._choose_dt(sample_dt, dt)
+        n_samples, start, end, drift, dt, every, noise, transient = self._check_simulation(
+            n_samples, sample_dt, dynamical_noise, transient, dt, overrides)
         tau0, tau1 = start["tau"], end["tau"]
-        self._check_resolution(min(tau0, tau1), dt)
-        noise = float(dynamical_noise)
-        if not (math.isfinite(noise) and noise >= 0):
-            raise ValueError(f"dynamical_noise must be a non-negative number, got {noise}.")
         rng = check_random_state(random_state)
-        transient = self._transient(transient, max(tau0, tau1))
         n_trans = math.ceil(transient / (every * dt) - 1e-9)
 
         x, ring, counter = self._start(rng, max(tau0, tau1), dt, start)
@@ -287,7 +318,51 @@ class DelaySystem:
                 where = "the transient" if done < n_trans else "the recorded run"
                 raise self._diverged(start, where, end if drift else None)
             done += m
+        # finite but absurd values (e.g. 1e243) are divergence too, not data
+        bound = _BOUND_FACTOR * (max(self._amplitude(start), self._amplitude(end)) + noise)
+        peak = float(np.max(np.abs(out)))
+        if not peak <= bound:
+            raise self._diverged(start, "the recorded run", end if drift else None,
+                                 what=f"|x| reached {peak:.3g}, beyond the bound {bound:.3g}")
         return out
+
+    def _check_simulation(self, n_samples, sample_dt, dynamical_noise, transient, dt,
+                          overrides):
+        n_samples = check_positive_int(n_samples, name="n_samples")
+        start, end, drift = self._check_overrides(overrides, allow_drift=True)
+        dt, every = self._choose_dt(sample_dt, dt)
+        self._check_resolution(min(start["tau"], end["tau"]), dt)
+        noise = float(dynamical_noise)
+        if not (math.isfinite(noise) and noise >= 0):
+            raise ValueError(f"dynamical_noise must be a non-negative number, got {noise}.")
+        transient = self._transient(transient, max(start["tau"], end["tau"]))
+        n_steps = (math.ceil(transient / (every * dt) - 1e-9) + n_samples) * every
+        if n_steps > _MAX_STEPS:
+            raise ValueError(
+                f"this run needs {n_steps:.3g} integration steps of dt={dt:g} (n_samples="
+                f"{n_samples}, sample_dt={sample_dt:g}, transient={transient:g}); more than "
+                f"{_MAX_STEPS:.0e} - use fewer samples, a smaller sample_dt or a shorter transient."
+            )
+        return n_samples, start, end, drift, dt, every, noise, transient
+
+    def check_simulation(self, n_samples, *, sample_dt=1.0, dynamical_noise=0.0,
+                         transient=None, dt=None, **overrides):
+        """Make every check of :meth:`simulate` without integrating; raise on a problem.
+
+        Lets a caller (the command line) reject bad arguments before any work
+        starts.  Divergence can only be found by simulating.
+
+        Parameters
+        ----------
+        n_samples, sample_dt, dynamical_noise, transient, dt, **overrides
+            As in :meth:`simulate`.
+
+        Raises
+        ------
+        ValueError, TypeError
+            With the message :meth:`simulate` would give.
+        """
+        self._check_simulation(n_samples, sample_dt, dynamical_noise, transient, dt, overrides)
 
     # -------------------------------------------------------------- spectrum
     def lyapunov_spectrum(self, n_exponents, *, duration=None, n_steps=None, dt=None,

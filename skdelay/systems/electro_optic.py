@@ -83,6 +83,10 @@ class ElectroOpticOscillator(DelaySystem):
         if params["eps"] < 0:
             raise ValueError(f"eps = tau_H / theta must be >= 0, got {params['eps']}.")
 
+    def _amplitude(self, params):
+        # band-pass filter of a forcing in [0, beta]: |x| stays within a few beta
+        return abs(params["beta"]) + 1.0
+
     def _initial_state(self, rng, times, params):
         x0 = [rng.uniform(-1.0, 1.0), 0.0]
         hist = x0[0] + 0.1 * rng.standard_normal(times.size)

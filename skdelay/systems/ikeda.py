@@ -64,6 +64,10 @@ class Ikeda(DelaySystem):
     def __init__(self, tau=5.0, mu=20.0, x0=math.pi / 4):
         super().__init__(tau=tau, mu=mu, x0=x0)
 
+    def _amplitude(self, params):
+        # 0 <= mu sin^2 <= mu: x relaxes into [min(0, mu), max(0, mu)] from the history
+        return abs(params["mu"]) + 1.0
+
     def _initial_state(self, rng, times, params):
         level = rng.uniform(0.0, abs(params["mu"]))
         hist = level + 0.1 * rng.standard_normal(times.size)

@@ -65,6 +65,15 @@ class MackeyGlass(DelaySystem):
             raise ValueError(
                 f"MackeyGlass needs a > 0 and b > 0, got a={params['a']}, b={params['b']}."
             )
+        if params["n"] <= 0:
+            # n <= 0 turns the saturating feedback into a growing one (x^(1-n) for x >> 1)
+            raise ValueError(
+                f"MackeyGlass needs a positive Hill exponent n (default 10), got n={params['n']}."
+            )
+
+    def _amplitude(self, params):
+        # x a / (1 + x^n) <= a max(1, x) for n >= 1, so x stays below max(a / b, history)
+        return max(1.5, params["a"] / params["b"])
 
     def _initial_state(self, rng, times, params):
         level = 0.5 + rng.uniform()
