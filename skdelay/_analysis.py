@@ -21,12 +21,12 @@ import numpy as np
 import pandas as pd
 from scipy.signal import find_peaks
 
-from ._checks import check_positive_int, check_series
+from ._checks import check_positive_int, check_series, resolve_sample_dt
 from ._correlation import autocorrelation, mutual_information, revival_peak
 from ._dips import locate_dips
 from ._embedding import required_lags
 from ._faithful import minimal_embedding
-from ._io import atomic_directory
+from ._io import atomic_directory, write_json
 from ._model import ModelOptions
 from ._report import write_analysis_report
 from ._sampling import sampling_step
@@ -288,8 +288,10 @@ class AnalysisResult:
         """Write results.json, the CSV tables, the model runs and report.html into ``directory``."""
         d = Path(directory)
         d.mkdir(parents=True, exist_ok=True)
-        (d / "results.json").write_text(json.dumps(self.to_dict(), indent=2, default=json_default),
-                                        encoding="utf-8")
+        reasons = {"delay_significant": None}
+        if not bool(self.delays.loc[self.m, "significant"]):
+            reasons["delay_reason"] = str(self.delays.loc[self.m, "reason"])
+        write_json(d / "results.json", self.to_dict(), reasons=reasons, default=str)
         self.forecast_error.to_csv(d / "forecast_error.csv")
         self.delays.to_csv(d / "delays.csv")
         self.validation.to_csv(d / "validation.csv")
@@ -314,17 +316,6 @@ def records(df):
     """Rows of a table as JSON-ready dicts (the index as a column)."""
     out = df.reset_index()
     return json.loads(out.to_json(orient="records"))
-
-
-def json_default(value):
-    """``json.dumps`` fallback for numpy scalars and arrays."""
-    if isinstance(value, (np.integer,)):
-        return int(value)
-    if isinstance(value, (np.floating,)):
-        return float(value)
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    return str(value)
 
 
 def _spectra_frame(spectra):
@@ -354,7 +345,8 @@ class AnalysisOptions:
         Delay scan range in samples; ``tau_max=None``: 1.25 x the strongest
         autocorrelation revival (see :func:`default_tau_max`).
     sample_dt : float
-        Sampling interval; exponents are per its time unit.
+        Sampling interval; exponents are per its time unit.  None: the step in
+        seconds of a pandas Series' DatetimeIndex/TimedeltaIndex, else 1.
     n_queries : int
         Forecasts per scan cell (default ``min(n, 4000)``).
     model : ModelOptions
@@ -386,7 +378,7 @@ class AnalysisOptions:
     m: tuple = (2, 3, 4, 5)
     tau_min: int = 1
     tau_max: int | None = None
-    sample_dt: float = 1.0
+    sample_dt: float | None = None
     n_queries: int | None = None
     model: ModelOptions = field(default_factory=ModelOptions)
     flow: bool = False
@@ -499,8 +491,9 @@ def analyze_series(series, options=None, *, quick=False, random_state=0, n_jobs=
     True
     """
     say = progress or quiet
-    raw = check_series(series, name="series")
     opts = _options_from(options, quick, dict(overrides))
+    opts = replace(opts, sample_dt=resolve_sample_dt(series, opts.sample_dt))
+    raw = check_series(series, name="series")
     step = sampling_step(raw) if opts.step is None else check_positive_int(opts.step,
                                                                             name="step")
     s = raw[::step]

@@ -9,15 +9,14 @@ beside, and the rescaled-spectrum collapse.  The report receives the
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
 
-from ._analysis import DEFAULT_M, AnalysisOptions, analyze_series, json_default, quiet, records
-from ._io import atomic_directory
+from ._analysis import DEFAULT_M, AnalysisOptions, analyze_series, quiet, records
+from ._io import atomic_directory, write_json
 from ._model import ModelOptions
 from ._report import write_demo_report
 from .datasets import load_laser
@@ -59,11 +58,11 @@ class DemoResult:
             for delay, res in self.results.items():
                 res.write_files(tmp / f"delay_{delay}")
             self.table.to_csv(tmp / "table.csv")
-            (tmp / "results.json").write_text(json.dumps({
+            write_json(tmp / "results.json", {
                 "unit": self.unit, "table": records(self.table),
                 "paper": records(self.paper),
                 "timings_s": {k: round(v, 1) for k, v in self.timings.items()},
-            }, indent=2, default=json_default), encoding="utf-8")
+            }, default=str)
             write_demo_report(self, tmp / "report.html")
         return directory
 

@@ -35,14 +35,19 @@ INCREMENT_TO_NOISE = 2.0
 MAX_STEP = 64
 #: Lags of the structure function fitted for the intercept (quadratic regime).
 _FIT_LAGS = 4
+#: Largest misfit of ``D(k) = 2 e^2 + c k^2`` over those lags, relative to ``D(4)``: a
+#: smooth signal with white noise fits to rounding (< 1 %); a chaotic map's structure
+#: function saturates after one step and misses by tens of per cent.
+QUADRATIC_MISFIT = 0.05
 
 
 def noise_and_increments(series, max_step=MAX_STEP):
     """Noise level and signal increment per step, from the structure function.
 
     Returns ``(noise, steps, increments)``: the measurement-noise standard
-    deviation, the steps ``1..max_step`` and the standard deviation of the
-    *signal* part of ``s[t+h] - s[t]`` for each (noise removed).
+    deviation (0 when the record is not smooth at its sampling scale, so no
+    noise floor can be separated), the steps ``1..max_step`` and the standard
+    deviation of the *signal* part of ``s[t+h] - s[t]`` for each (noise removed).
 
     Examples
     --------
@@ -59,9 +64,12 @@ def noise_and_increments(series, max_step=MAX_STEP):
     d = np.array([np.var(s[h:] - s[:-h]) for h in steps])
     k2 = steps[:_FIT_LAGS].astype(float) ** 2
     slope, intercept = np.polyfit(k2, d[:_FIT_LAGS], 1)
-    if slope <= 0 or intercept <= 0:  # not smooth on this scale, or no resolvable noise
-        intercept = 0.0 if slope > 0 else min(d[0], 2 * np.var(s)) / 2
-    noise = math.sqrt(max(intercept, 0.0) / 2.0)
+    misfit = np.max(np.abs(d[:_FIT_LAGS] - (intercept + slope * k2))) / d[_FIT_LAGS - 1]
+    if slope <= 0 or intercept <= 0 or misfit > QUADRATIC_MISFIT:
+        # not smooth at the sampling scale (a map, or a flow sampled coarsely): the
+        # structure function is not quadratic, so no noise floor can be read off it
+        intercept = 0.0
+    noise = math.sqrt(intercept / 2.0)
     increments = np.sqrt(np.maximum(d - 2 * noise ** 2, 0.0))
     return noise, steps, increments
 

@@ -47,3 +47,14 @@ def test_explicit_step_is_used():
     assert res.step == 1 and abs(res.summary_row()["delay"] - 17) <= 1
     with pytest.raises(ValueError, match="step"):
         analyze_series(x, m=(2,), tau_min=8, tau_max=30, quick=True, step=0)
+
+
+def test_time_index_gives_the_sampling_interval():
+    import pandas as pd
+
+    x = measure(MackeyGlass(tau=17.0).simulate(12_000, random_state=0), noise=0.005,
+                random_state=1)
+    series = pd.Series(x, index=pd.timedelta_range(0, periods=x.size, freq="2ms"))
+    res = analyze_series(series, m=(2, 3), tau_min=8, tau_max=30, quick=True)
+    assert res.sample_dt == pytest.approx(0.002)
+    assert res.summary_row()["delay_time"] == pytest.approx(17 * 0.002, abs=0.0021)  # 1 sample
