@@ -28,6 +28,7 @@ from ._embedding import required_lags
 from ._faithful import minimal_embedding
 from ._io import atomic_directory, write_json
 from ._model import ModelOptions
+from ._model_selection import select_model_options
 from ._report import write_analysis_report
 from ._sampling import sampling_step
 from ._selection import forecast_error_curve
@@ -168,6 +169,8 @@ class AnalysisResult:
     step : int
         Sampling step applied to the record (1: none; see
         :func:`~skdelay._sampling.sampling_step`).
+    model_selection : pandas.DataFrame or None
+        The cross-validation table behind the model settings (``select_model``).
     revivals : dict
         ``acf`` and ``mi`` curves and the lags of their first revival.
     forecast_error : pandas.DataFrame
@@ -205,6 +208,7 @@ class AnalysisResult:
     runs: dict = field(repr=False)
     minimal_m_reason: str = ""
     step: int = 1
+    model_selection: pd.DataFrame | None = None
     options: dict = field(default_factory=dict)
     timings: dict = field(default_factory=dict)
 
@@ -295,6 +299,8 @@ class AnalysisResult:
         self.forecast_error.to_csv(d / "forecast_error.csv")
         self.delays.to_csv(d / "delays.csv")
         self.validation.to_csv(d / "validation.csv")
+        if self.model_selection is not None:
+            self.model_selection.to_csv(d / "model_selection.csv", index=False)
         _spectra_frame(self.spectra).to_csv(d / "lyapunov.csv", index=False)
         pd.DataFrame({f"m={m}": pd.Series(r) for m, r in self.runs.items()}).to_csv(
             d / "model_runs.csv", index_label="step")
@@ -373,6 +379,10 @@ class AnalysisOptions:
         (:func:`~skdelay._sampling.sampling_step`: 1 unless the record is so
         oversampled that the one-step increment drowns in measurement noise).
         Delay ranges (``tau_min``, ``tau_max``) are in the original samples.
+    select_model : bool
+        Choose the models' neighbourhood size and ridge by time-series
+        cross-validation (:func:`~skdelay._model_selection.select_model_options`)
+        on the reported ``m``; the table is kept in ``AnalysisResult.model_selection``.
     """
 
     m: tuple = (2, 3, 4, 5)
@@ -388,6 +398,7 @@ class AnalysisOptions:
     n_spectrum_steps: int | None = None
     n_validation: int | None = None
     step: int | None = None
+    select_model: bool = False
 
     @classmethod
     def quick(cls, **changes):
@@ -429,6 +440,7 @@ def _options_from(options, quick, overrides):
     model = {k: v for k, v in model.items() if v is not None or k == "n_neighbors"}
     if model:
         overrides["model"] = replace(options.model, **model)
+
     if "m" in overrides:
         overrides["m"] = tuple(np.atleast_1d(overrides["m"]).tolist())
     return replace(options, **overrides)
@@ -537,6 +549,12 @@ def analyze_series(series, options=None, *, quick=False, random_state=0, n_jobs=
     n_exp[ms[-1]] = int(opts.n_exponents or min(required_lags(ms[-1], tau_of[ms[-1]]),
                                                 20 + tau_of[ms[-1]] // 6))
     s_val = s[n - opts.n_validation:]
+    selection = None
+    if opts.select_model:
+        say(f"model settings: cross-validating neighbours and ridge for m = {ms[-1]}")
+        selection = select_model_options(s_val, ms[-1], tau_of[ms[-1]], base=opts.model,
+                                         random_state=random_state, n_jobs=n_jobs)
+        opts = replace(opts, model=selection.options)
     faithful = minimal_embedding(
         s_val, tau=tau_of, m_min=m_all[0], m_max=m_all[-1], n_steps=opts.n_run,
         n_runs=opts.n_runs, model=opts.model, n_exponents=n_exp,
@@ -549,6 +567,7 @@ def analyze_series(series, options=None, *, quick=False, random_state=0, n_jobs=
         name=name, sample_dt=dt, series=s, revivals=revivals, forecast_error=curve,
         delays=dips, m=ms[-1], spectra=faithful.spectra, validation=faithful.table,
         minimal_m=faithful.m_d, minimal_m_reason=faithful.reason, step=step,
+        model_selection=None if selection is None else selection.table,
         runs={mm: r[0] for mm, r in faithful.runs.items() if r}, options=opts.to_dict(),
         timings=timings,
     )

@@ -44,7 +44,7 @@ PER_PARAMETER_GRID = (2.0, 4.0, 8.0, 16.0, 32.0)
 #: Relative ridges (fractions of the mean eigenvalue of the local covariance).
 RIDGE_GRID = (1e-3, 1e-2, 1e-1)
 #: Forecasts scored per fold and error (a subsample keeps the search to seconds).
-N_SCORED = 1000
+N_SCORED = 600
 #: Test folds of the TimeSeriesSplit.
 N_SPLITS = 3
 
@@ -78,13 +78,13 @@ def _iterated_scorer(scale, n_scored, seed, horizon):
         # rows of a test fold are consecutive: X[i] holds the state (newest first) and
         # y[i : i + horizon] the true continuation
         rows = _rows(len(X), max(1, n_scored // 4), seed, margin=horizon)
-        err = []
-        for i in rows:
+        err = np.empty(rows.size)
+        for j, i in enumerate(rows):
             run = iterate(estimator, X[i, ::-1], horizon, on_escape="ignore")
-            if run.size < horizon:  # a run that escapes within the horizon: worst score
-                return -np.inf
-            err.append(run[-1] - y[i + horizon - 1])
-        return -float(np.sqrt(np.mean(np.square(err)))) / scale
+            # a run that escapes has forecast nothing: the error of a guess drawn from the
+            # data's distribution, sqrt(2) standard deviations
+            err[j] = run[-1] - y[i + horizon - 1] if run.size == horizon else np.sqrt(2) * scale
+        return -float(np.sqrt(np.mean(err ** 2))) / scale
 
     return score
 
@@ -93,8 +93,7 @@ def _pick(cv_results):
     """Index of the setting with the smallest sum of relative errors (GridSearchCV refit)."""
     one = -np.asarray(cv_results["mean_test_one_step"])
     few = -np.asarray(cv_results["mean_test_iterated"])
-    total = one / np.nanmin(one) + few / np.nanmin(few)
-    total[~np.isfinite(total)] = np.inf
+    total = one / np.min(one) + few / np.min(few)
     return int(np.argmin(total))
 
 
@@ -117,10 +116,10 @@ def select_model_options(series, m, tau, *, base=None, per_parameter=PER_PARAMET
         The grid: neighbours per parameter (``k = per_parameter * (2 m + 1)``)
         and relative ridges.
     horizon : int, default=None
-        Steps of the iterated forecast (default ``max(2, tau // 10)``: a
-        fraction of a delay loop, within the predictability time of the
-        delay systems the library is for).
-    n_scored : int, default=1000
+        Steps of the iterated forecast (default ``min(max(2, tau // 4), 50)``: a
+        fraction of a delay loop, so the errors of the local Jacobians have
+        grown through the map but the feedback has not yet closed the loop).
+    n_scored : int, default=600
         One-step forecasts scored per fold (a quarter as many iterated ones).
     random_state : int, default=0
         Seeds the scored subsets.
@@ -147,7 +146,7 @@ def select_model_options(series, m, tau, *, base=None, per_parameter=PER_PARAMET
     s = check_series(series, name="series", min_length=200)
     m = check_positive_int(m, name="m")
     tau = check_positive_int(tau, name="tau")
-    horizon = max(2, tau // 10) if horizon is None else check_positive_int(horizon,
+    horizon = min(max(2, tau // 4), 50) if horizon is None else check_positive_int(horizon,
                                                                            name="horizon")
     base = ModelOptions() if base is None else base
     X, y = lagged_windows(s, required_lags(m, tau))

@@ -58,3 +58,18 @@ def test_time_index_gives_the_sampling_interval():
     res = analyze_series(series, m=(2, 3), tau_min=8, tau_max=30, quick=True)
     assert res.sample_dt == pytest.approx(0.002)
     assert res.summary_row()["delay_time"] == pytest.approx(17 * 0.002, abs=0.0021)  # 1 sample
+
+
+def test_model_settings_by_cross_validation_are_used_and_reported():
+    x = measure(MackeyGlass(tau=17.0).simulate(12_000, random_state=0), noise=0.01,
+                random_state=1)
+    res = analyze_series(x, m=(2, 3), tau_min=8, tau_max=30, quick=True, select_model=True)
+    table = res.model_selection
+    assert table is not None and int(table["chosen"].sum()) == 1
+    best = table[table["chosen"]].iloc[0]
+    # the chosen setting has the smallest summed relative error of the grid
+    total = table["one_step"] / table["one_step"].min() + table["iterated"] / table[
+        "iterated"].min()
+    assert total.idxmin() == best.name
+    assert res.options["ridge"] == best["ridge"]
+    assert res.options["per_parameter"] == pytest.approx(best["per_parameter"])
