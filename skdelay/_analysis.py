@@ -118,10 +118,11 @@ def check_options(series, *, m=DEFAULT_M, tau_min=1, tau_max=None, sample_dt=1.0
     message that says what to change.
     """
     s = check_series(series, name="series", min_length=2)
-    try:
-        ms = tuple(sorted({int(v) for v in np.atleast_1d(m)}))
-    except (TypeError, ValueError):
-        raise ValueError(f"m must be window lengths like (2, 3, 4, 5), got {m!r}.") from None
+    values = np.atleast_1d(np.asarray(m, dtype=object)).ravel()
+    if not all(isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
+               for v in values):
+        raise ValueError(f"m must be whole window lengths like (2, 3, 4, 5), got {m!r}.")
+    ms = tuple(sorted({int(v) for v in values}))
     if not ms or ms[0] < 1:
         raise ValueError(f"m must hold window lengths >= 1, got {m!r}.")
     sample_dt = float(sample_dt)

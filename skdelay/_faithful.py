@@ -326,7 +326,7 @@ def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_mi
     random_state : int, Generator or None
         Initial histories and probes.
     n_jobs : int, default=None
-        Passed to the delay scan.
+        Workers of the delay scan and threads of the spectra's neighbour queries.
 
     Returns
     -------
@@ -407,7 +407,7 @@ def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_mi
         k = min(dim, 30) if n_exp[m] is None else min(dim, int(n_exp[m]))
         spectra[m] = covering_spectrum(models[m], s, n_exponents=k, n_steps=n_spectrum_steps,
                                        sample_dt=sample_dt, max_doublings=int(doublings[m]),
-                                       flow=flow)
+                                       flow=flow, n_jobs=n_jobs)
         row.update(lambda_1=float(spectra[m].exponents[0]),
                    d_ky=float(spectra[m].kaplan_yorke_dimension),
                    h_ks=float(spectra[m].ks_entropy), n_positive=int(spectra[m].n_positive))

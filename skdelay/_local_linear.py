@@ -161,7 +161,7 @@ class LocalLinearDelayMap(RegressorMixin, BaseEstimator):
         check_is_fitted(self)
         return self._Xs, np.ascontiguousarray(self.x_scaler_.forward(self.fit_y_))
 
-    def _maps(self, X, query_index):
+    def _maps(self, X, query_index, n_jobs=None):
         check_is_fitted(self)
         _check_params(self)
         X = validate_data(self, X, dtype=np.float64, reset=False)
@@ -185,7 +185,8 @@ class LocalLinearDelayMap(RegressorMixin, BaseEstimator):
             pos, weight = tree_neighbours(
                 self._tree, Xs[sl], self.n_neighbors, radius=radius,
                 query_ids=None if query_index is None else query_index[sl],
-                theiler_window=self.theiler_window, workers=_workers(self.n_jobs))
+                theiler_window=self.theiler_window,
+                workers=_workers(self.n_jobs if n_jobs is None else n_jobs))
             A[sl], b[sl], pred[sl] = fit_gathered(
                 Xs[sl], self._Xs[pos], self._ys[pos], weight.astype(np.float64),
                 float(self.ridge), int(self.order), 0.0)
@@ -209,7 +210,7 @@ class LocalLinearDelayMap(RegressorMixin, BaseEstimator):
         """
         return self._maps(X, query_index)[2]
 
-    def local_maps(self, X, *, query_index=None):
+    def local_maps(self, X, *, query_index=None, n_jobs=None):
         """Local affine maps at the query points.
 
         Parameters
@@ -218,6 +219,9 @@ class LocalLinearDelayMap(RegressorMixin, BaseEstimator):
             Query vectors.
         query_index : array-like of int, shape (n,), default=None
             As in :meth:`predict`.
+        n_jobs : int, default=None
+            Threads of the neighbour queries for this call (default: the
+            estimator's ``n_jobs``).
 
         Returns
         -------
@@ -226,5 +230,5 @@ class LocalLinearDelayMap(RegressorMixin, BaseEstimator):
         b : ndarray of shape (n,)
             Offsets; the forecast is ``b + (A * X).sum(1)``.
         """
-        A, b, _ = self._maps(X, query_index)
+        A, b, _ = self._maps(X, query_index, n_jobs)
         return A, b

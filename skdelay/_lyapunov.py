@@ -37,7 +37,7 @@ OFF_SUPPORT_LIMIT = 0.05
 
 def lyapunov_spectrum(model, series, *, n_exponents=None, n_steps=None, sample_dt=1.0,
                       tau=None, n_transient=None, qr_interval=None, n_blocks=10,
-                      exclude_self="auto", flow=False, random_state=0):
+                      exclude_self="auto", flow=False, random_state=0, n_jobs=None):
     """Lyapunov spectrum of a fitted two-window model along a trajectory.
 
     The tangent map of the delay map is the shift plus one new row,
@@ -91,6 +91,9 @@ def lyapunov_spectrum(model, series, *, n_exponents=None, n_steps=None, sample_d
         ``n_exponents``; ``extra["zero_exponent"]`` is None).
     random_state : int, Generator or None, default=0
         Initial tangent vectors.
+    n_jobs : int, default=None
+        Threads of the neighbour queries behind the Jacobians (-1: all cores;
+        None: the model's own ``n_jobs``).
 
     Returns
     -------
@@ -193,10 +196,13 @@ def lyapunov_spectrum(model, series, *, n_exponents=None, n_steps=None, sample_d
                 "model's. Pass the data the model was fitted on, or a run of the model.",
                 OffSupportWarning, stacklevel=2)
     jac = np.empty_like(V)
+    # the neighbour queries are most of the cost: threads (k-d tree workers) for them
+    workers = {} if n_jobs is None or not hasattr(mdl.regressor, "database") else {
+        "n_jobs": int(n_jobs)}
     for lo in range(0, n, CHUNK_ROWS):
         sl = slice(lo, min(n, lo + CHUNK_ROWS))
         jac[sl], _ = mdl.regressor.local_maps(
-            V[sl], query_index=None if qidx is None else qidx[sl])
+            V[sl], query_index=None if qidx is None else qidx[sl], **workers)
     if not np.all(np.isfinite(jac)):
         raise ValueError("the local maps contain NaN/inf; the model or series is degenerate.")
     if n_transient is None:
@@ -221,7 +227,7 @@ def lyapunov_spectrum(model, series, *, n_exponents=None, n_steps=None, sample_d
 
 
 def covering_spectrum(model, series, *, n_exponents, n_steps=None, sample_dt=1.0,
-                      max_doublings=1, flow=False):
+                      max_doublings=1, flow=False, n_jobs=None):
     """Lyapunov spectrum with enough exponents to close the Kaplan-Yorke sum (if affordable).
 
     Starts with ``n_exponents`` and doubles (at most ``max_doublings`` times)
@@ -232,7 +238,7 @@ def covering_spectrum(model, series, *, n_exponents, n_steps=None, sample_dt=1.0
     n_exp = min(dim, int(n_exponents))
     for attempt in range(max_doublings + 1):
         spec = lyapunov_spectrum(model, series, n_exponents=n_exp, sample_dt=sample_dt,
-                                 n_steps=n_steps, flow=flow)
+                                 n_steps=n_steps, flow=flow, n_jobs=n_jobs)
         closed = spec.kaplan_yorke_dimension < n_exp - 1e-9 or n_exp >= dim
         if closed or attempt == max_doublings:
             spec.extra["ky_closed"] = bool(closed)

@@ -73,3 +73,10 @@ def test_model_settings_by_cross_validation_are_used_and_reported():
     assert total.idxmin() == best.name
     assert res.options["ridge"] == best["ridge"]
     assert res.options["per_parameter"] == pytest.approx(best["per_parameter"])
+
+
+@pytest.mark.parametrize("m", [1.5, (2, 2.5), "3", (True,)])
+def test_fractional_or_non_integer_m_is_refused(m):
+    x = MackeyGlass(tau=17.0).simulate(3000, random_state=0)
+    with pytest.raises(ValueError, match="whole window lengths"):
+        analyze_series(x, m=m, tau_min=8, tau_max=30, quick=True)
