@@ -25,7 +25,7 @@ from ._checks import check_positive_int, check_series, resolve_sample_dt
 from ._correlation import autocorrelation, mutual_information, revival_peak
 from ._dips import locate_dips
 from ._embedding import required_lags
-from ._faithful import minimal_embedding
+from ._faithful import DEFAULT_RUN, minimal_embedding
 from ._io import atomic_directory, write_json
 from ._model import ModelOptions
 from ._model_selection import select_model_options
@@ -42,8 +42,38 @@ __all__ = [
     "strongest_revival",
 ]
 
+#: Window lengths of the paper's analysis (its m_d was at most 5).
 DEFAULT_M = (2, 3, 4, 5)
+#: Largest delay scanned by default (the paper's longest delay, 400 samples, fits).
 MAX_TAU = 500
+#: The default scan reaches this multiple of the strongest autocorrelation revival plus
+#: SCAN_MARGIN samples: the revival lies beyond the delay by the loop's response time
+#: (3-25 % in the paper's laser and in Mackey-Glass), and the dip needs a baseline on its
+#: far side.
+SCAN_REACH, SCAN_MARGIN = 1.25, 10
+#: Shortest default scan, and the default without any revival.
+MIN_TAU_MAX, NO_REVIVAL_TAU_MAX = 20, 100
+#: A revival must stand out by this fraction of the curve's range (sampling ripples of
+#: the autocorrelation of 1e4-sample records are below 1 %).
+REVIVAL_PROMINENCE = 0.02
+#: The series must hold this many samples per scanned lag (and at least MIN_SAMPLES):
+#: with fewer, the k-NN neighbourhoods of the longest windows are no longer local.
+SAMPLES_PER_LAG, MIN_SAMPLES = 20, 1000
+#: Fewest forecasts per scan cell that give a usable error (standard error ~ 7 %).
+MIN_QUERIES = 100
+#: Defaults that grow with the record up to these sizes: forecasts per scan cell (the
+#: cell's standard error ~ 1 %), steps of the data along which spectra are averaged, and
+#: samples on which the models are fitted and validated.
+N_QUERIES, N_SPECTRUM_STEPS, N_VALIDATION = 4000, 100_000, 200_000
+#: The quick preset's sizes (about 10x less work than the defaults above).
+QUICK_QUERIES, QUICK_RUN, QUICK_SPECTRUM_STEPS = 1500, 2000, 5000
+#: Scans with more forecasts than this run on all cores (below it, starting the worker
+#: processes costs more than it saves).
+PARALLEL_FORECASTS = 300_000
+#: Exponents of the reported model: N_EXPONENTS_BASE + tau / EXPONENTS_PER_DELAY (the
+#: paper's spectra have about tau / 15 positive exponents; twice that closes the
+#: Kaplan-Yorke sum).
+N_EXPONENTS_BASE, DELAY_PER_EXPONENT = 20, 6
 def quiet(_message):
     """Default progress callback: say nothing."""
 
@@ -74,11 +104,11 @@ def default_tau_max(series, *, cap=MAX_TAU):
     110
     """
     s = check_series(series, name="series", min_length=50)
-    max_lag = int(min(s.size // 4, math.ceil(cap / 1.25) + 50))
+    max_lag = int(min(s.size // 4, math.ceil(cap / SCAN_REACH) + 5 * SCAN_MARGIN))
     best = strongest_revival(autocorrelation(s, max_lag))
     if best is None:
-        return min(100, cap)
-    return int(min(cap, max(20, math.ceil(1.25 * best) + 10)))
+        return min(NO_REVIVAL_TAU_MAX, cap)
+    return int(min(cap, max(MIN_TAU_MAX, math.ceil(SCAN_REACH * best) + SCAN_MARGIN)))
 
 
 def strongest_revival(curve):
@@ -103,7 +133,7 @@ def strongest_revival(curve):
         return None
     start = int(rises[0])
     tail = c[start:]
-    peaks, _ = find_peaks(tail, prominence=0.02 * np.ptp(tail))
+    peaks, _ = find_peaks(tail, prominence=REVIVAL_PROMINENCE * np.ptp(tail))
     if peaks.size == 0:
         return None
     return int(peaks[np.argmax(tail[peaks])]) + start
@@ -132,13 +162,13 @@ def check_options(series, *, m=DEFAULT_M, tau_min=1, tau_max=None, sample_dt=1.0
     if tau_min < 1:
         raise ValueError(f"the smallest delay of the scan must be >= 1, got {tau_min}.")
     if tau_max is None:
-        tau_max = default_tau_max(s) if s.size >= 200 else 20
-        tau_max = max(tau_max, tau_min + 10)
+        tau_max = default_tau_max(s) if s.size >= 10 * MIN_TAU_MAX else MIN_TAU_MAX
+        tau_max = max(tau_max, tau_min + SCAN_MARGIN)
     tau_max = int(tau_max)
     if tau_max < tau_min + 4:
         raise ValueError(f"the delay scan {tau_min}..{tau_max} is too short to show a dip; "
                          "scan at least 5 delays (raise --tau-max or lower --tau-min).")
-    need = max(1000, 20 * (tau_max + ms[-1]))
+    need = max(MIN_SAMPLES, SAMPLES_PER_LAG * (tau_max + ms[-1]))
     if s.size < need:
         raise ValueError(
             f"the series has {s.size} samples but a scan up to tau={tau_max} with m={ms[-1]} "
@@ -146,8 +176,8 @@ def check_options(series, *, m=DEFAULT_M, tau_min=1, tau_max=None, sample_dt=1.0
         )
     if n_queries is not None:
         n_queries = int(n_queries)
-        if n_queries < 100:
-            raise ValueError(f"n_queries must be >= 100, got {n_queries}.")
+        if n_queries < MIN_QUERIES:
+            raise ValueError(f"n_queries must be >= {MIN_QUERIES}, got {n_queries}.")
     return {"m": ms, "tau_min": tau_min, "tau_max": tau_max, "sample_dt": sample_dt,
                 "n_queries": n_queries}
 
@@ -365,7 +395,7 @@ class AnalysisOptions:
         Exponents of the reported model (default ``min(D, 20 + tau // 6)``,
         doubled once if the Kaplan-Yorke sum does not close).
     n_run : int
-        Length of each compared free run (default 20000), at most ``n // 4``
+        Length of each compared free run (default 10000), at most ``n // 4``
         (the faithfulness bands need four disjoint data segments of that length).
     n_runs : int
         Free runs per model (:func:`~skdelay.dynamics.minimal_embedding`).
@@ -403,19 +433,22 @@ class AnalysisOptions:
 
     @classmethod
     def quick(cls, **changes):
-        """Small settings for previews and tests (about 10x faster)."""
-        base = cls(n_queries=1500, n_run=2000, n_runs=2, n_spectrum_steps=5000)
+        """Small settings for previews and tests (about 10x faster): a few per cent
+        precision in sigma and the exponents instead of about one."""
+        base = cls(n_queries=QUICK_QUERIES, n_run=QUICK_RUN, n_runs=2,
+                   n_spectrum_steps=QUICK_SPECTRUM_STEPS)
         return replace(base, **changes)
 
     def resolved(self, n):
         """The options with every None that depends on the series' length ``n`` filled in."""
         return replace(
             self,
-            n_queries=min(n, 4000) if self.n_queries is None else min(n, self.n_queries),
-            n_run=min(n // 4, 20_000 if self.n_run is None else self.n_run),
-            n_spectrum_steps=(min(n, 100_000) if self.n_spectrum_steps is None
-                              else self.n_spectrum_steps),
-            n_validation=min(n, 200_000) if self.n_validation is None else self.n_validation,
+            n_queries=min(n, N_QUERIES if self.n_queries is None else self.n_queries),
+            n_run=min(n // 4, DEFAULT_RUN if self.n_run is None else self.n_run),
+            n_spectrum_steps=min(n, N_SPECTRUM_STEPS if self.n_spectrum_steps is None
+                                 else self.n_spectrum_steps),
+            n_validation=min(n, N_VALIDATION if self.n_validation is None
+                             else self.n_validation),
         )
 
     def to_dict(self):
@@ -521,11 +554,11 @@ def analyze_series(series, options=None, *, quick=False, random_state=0, n_jobs=
     taus = range(opts.tau_min, opts.tau_max + 1)
     n = s.size
     if n_jobs is None:  # worker start-up only pays off for big scans
-        n_jobs = -1 if len(ms) * len(taus) * opts.n_queries > 300_000 else 1
+        n_jobs = -1 if len(ms) * len(taus) * opts.n_queries > PARALLEL_FORECASTS else 1
     timings, t0 = {}, time.perf_counter()
 
     say("autocorrelation and mutual information")
-    max_lag = int(min(n - 1, max(opts.tau_max + 20, 1.25 * opts.tau_max)))
+    max_lag = int(min(n - 1, max(opts.tau_max + MIN_TAU_MAX, SCAN_REACH * opts.tau_max)))
     acf = autocorrelation(s, max_lag)
     mi = mutual_information(s, max_lag)
     revivals = {"acf": acf, "mi": mi, "acf_revival": _revival(revival_peak, acf),
@@ -548,7 +581,8 @@ def analyze_series(series, options=None, *, quick=False, random_state=0, n_jobs=
     t2 = time.perf_counter()
     n_exp = {mm: min(required_lags(mm, tau_of[mm]), N_EXPONENTS_OTHER) for mm in m_all}
     n_exp[ms[-1]] = int(opts.n_exponents or min(required_lags(ms[-1], tau_of[ms[-1]]),
-                                                20 + tau_of[ms[-1]] // 6))
+                                                N_EXPONENTS_BASE
+                                                + tau_of[ms[-1]] // DELAY_PER_EXPONENT))
     s_val = s[n - opts.n_validation:]
     selection = None
     if opts.select_model:
