@@ -2,8 +2,9 @@
 
 For Mackey-Glass with tau = 17, 23, 30 at 10^5 samples, clean and with 1 % and
 5 % Gaussian measurement noise, runs :func:`skdelay.dynamics.minimal_embedding`
-(m = 1..5, delay from the data's own forecast-error dips, default settings) and
-prints m_d with every model's verdict.  What must hold: m_d within +-1 across
+(m = 1..5, delay from the data's own forecast-error dips; with ``--select``
+the neighbourhood size and ridge from time-series cross-validation of the
+m = 5 model, otherwise the defaults) and prints m_d with every model's verdict.  What must hold: m_d within +-1 across
 the noise levels of one system, and "faithful at m" implies "faithful at m+1".
 
 Usage::
@@ -18,7 +19,9 @@ import time
 
 import pandas as pd
 
+from skdelay import forecast_error_curve, locate_dips
 from skdelay.dynamics import minimal_embedding
+from skdelay.model_selection import select_model_options
 from skdelay.systems import MackeyGlass, measure
 
 NOISE_LEVELS = (0.0, 0.01, 0.05)
@@ -30,18 +33,28 @@ def main(argv=None):
     parser.add_argument("--taus", type=int, nargs="+", default=[17, 23, 30])
     parser.add_argument("--seed", type=int, default=2024)
     parser.add_argument("--out", default=None)
+    parser.add_argument("--noise", type=float, nargs="+", default=list(NOISE_LEVELS))
+    parser.add_argument("--select", action="store_true",
+                        help="model settings by cross-validation (else the defaults)")
     args = parser.parse_args(argv)
     rows, lines = [], []
     for tau in args.taus:
         clean = MackeyGlass(tau=float(tau)).simulate(args.n, random_state=args.seed)
-        for noise in NOISE_LEVELS:
+        for noise in args.noise:
             x = measure(clean, noise=noise, random_state=args.seed + 1) if noise else clean
             t0 = time.perf_counter()
-            res = minimal_embedding(x, tau_grid=range(max(1, tau - 12), tau + 13), m_max=5,
-                                    random_state=args.seed)
+            grid = range(max(1, tau - 12), tau + 13)
+            dips = locate_dips(forecast_error_curve(x, m=(1, 2, 3, 4, 5), tau=grid,
+                                                    n_queries=5000, random_state=args.seed))
+            taus = {int(m): int(dips.loc[m, "tau_best"]) for m in dips.index}
+            model = (select_model_options(x, 5, taus[5], random_state=args.seed).options
+                     if args.select else None)
+            res = minimal_embedding(x, tau=taus, m_max=5, model=model, random_state=args.seed)
             dt = time.perf_counter() - t0
             verdicts = " ".join("+" if f else "-" for f in res.table["faithful"])
             rows.append({"tau": tau, "noise": noise, "m_d": res.m_d, "verdicts m=1..5": verdicts,
+                         "k/param, ridge": "default" if model is None else
+                         f"{model.per_parameter:g}, {model.ridge:g}",
                          "seconds": round(dt, 1)})
             lines.append(f"tau={tau} noise={noise:g}: m_d={res.m_d} ({res.reason or 'ok'})")
             for m, st in res.table["status"].items():
@@ -51,7 +64,9 @@ def main(argv=None):
     print(text)
     if args.out:
         with open(args.out, "w", encoding="utf-8") as fh:
-            fh.write(f"python benchmarks/faithful_noise.py --n {args.n}\n\n" + text)
+            fh.write(f"python benchmarks/faithful_noise.py --n {args.n} --taus "
+                     f"{' '.join(map(str, args.taus))}{' --select' if args.select else ''}"
+                     f"\n\n" + text)
 
 
 if __name__ == "__main__":

@@ -526,7 +526,7 @@ def analyze_series(series, options=None, *, quick=False, random_state=0, n_jobs=
     Examples
     --------
     >>> import numpy as np
-    >>> from skdelay._analysis import analyze_series
+    >>> from skdelay import analyze_series
     >>> rng = np.random.default_rng(0)
     >>> s = np.full(6000, 0.5)
     >>> for t in range(11, 5999):          # a chaotic map with delay 12

@@ -252,7 +252,7 @@ def noise_reduction(series, *, dim=7, q=2, lag=1, n_neighbors=30, radius=None,
     Examples
     --------
     >>> import numpy as np
-    >>> from skdelay._testing_maps import henon
+    >>> from skdelay.datasets import henon
     >>> from skdelay.classic import noise_reduction
     >>> clean = henon(5000, random_state=0)
     >>> noisy = clean + 0.05 * clean.std() * np.random.default_rng(0).normal(size=clean.size)
@@ -402,7 +402,7 @@ def correlation_sum(series, dim, lag=1, radii=None, *, theiler_window=0, n_refer
 
     Examples
     --------
-    >>> from skdelay._testing_maps import henon
+    >>> from skdelay.datasets import henon
     >>> from skdelay.classic import correlation_sum
     >>> r, c = correlation_sum(henon(2000, random_state=0), 2, radii=[0.01, 0.1])
     >>> bool(c[0] < c[1])
@@ -525,7 +525,7 @@ def correlation_dimension(series, dims=range(1, 9), lag=1, *, radii=None, theile
 
     Examples
     --------
-    >>> from skdelay._testing_maps import henon
+    >>> from skdelay.datasets import henon
     >>> from skdelay.classic import correlation_dimension
     >>> res = correlation_dimension(henon(5000, random_state=0), dims=[1, 2, 3, 4],
     ...                             random_state=0)
@@ -715,7 +715,7 @@ def maximal_lyapunov_exponent(series, *, dim, lag=1, theiler_window=0, sample_dt
 
     Examples
     --------
-    >>> from skdelay._testing_maps import henon
+    >>> from skdelay.datasets import henon
     >>> from skdelay.classic import maximal_lyapunov_exponent
     >>> res = maximal_lyapunov_exponent(henon(5000, random_state=0), dim=2, max_steps=12,
     ...                                 fit_range=(0, 5), random_state=0)
@@ -800,7 +800,7 @@ def false_nearest_neighbors(series, *, max_dim=10, lag=1, rtol=10.0, atol=2.0,
 
     Examples
     --------
-    >>> from skdelay._testing_maps import henon
+    >>> from skdelay.datasets import henon
     >>> from skdelay.classic import false_nearest_neighbors
     >>> fnn = false_nearest_neighbors(henon(3000, random_state=0), max_dim=3)
     >>> bool(fnn.loc[1, "fraction"] > 0.5 and fnn.loc[2, "fraction"] < 0.05)

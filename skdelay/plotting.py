@@ -255,7 +255,7 @@ def plot_correlation_dimension(result, *, ax=None):
 
     Examples
     --------
-    >>> from skdelay._testing_maps import henon
+    >>> from skdelay.datasets import henon
     >>> from skdelay.classic import correlation_dimension
     >>> from skdelay.plotting import plot_correlation_dimension
     >>> res = correlation_dimension(henon(3000, random_state=0), dims=[1, 2, 3], random_state=0)
@@ -290,7 +290,7 @@ def plot_divergence(result, *, ax=None):
 
     Examples
     --------
-    >>> from skdelay._testing_maps import henon
+    >>> from skdelay.datasets import henon
     >>> from skdelay.classic import maximal_lyapunov_exponent
     >>> from skdelay.plotting import plot_divergence
     >>> res = maximal_lyapunov_exponent(henon(3000, random_state=0), dim=2, max_steps=10,
