@@ -202,6 +202,8 @@ class AnalysisResult:
         :func:`~skdelay._sampling.sampling_step`).
     model_selection : pandas.DataFrame or None
         The cross-validation table behind the model settings (``select_model``).
+    time_unit : str
+        Name of the time unit (labels: exponents per this unit).
     revivals : dict
         ``acf`` and ``mi`` curves and the lags of their first revival.
     forecast_error : pandas.DataFrame
@@ -240,6 +242,7 @@ class AnalysisResult:
     minimal_m_reason: str = ""
     step: int = 1
     model_selection: pd.DataFrame | None = None
+    time_unit: str = "time unit"
     options: dict = field(default_factory=dict)
     timings: dict = field(default_factory=dict)
 
@@ -310,9 +313,10 @@ class AnalysisResult:
                 + ("" if row.significant else " (no significant dip)")
                 for m, row in self.delays.iterrows()),
             (f"model m={r['m']}, tau={r['delay']}: {r['N']} positive exponent(s), "
-            f"lambda_max = {r['lambda_max']:.4g} /time unit, "
-            f"D_KY {'=' if r['D_KY_closed'] else '>='} {r['D_KY']:.2f}, "
-            f"h_KS = {r['h_KS']:.4g} /time unit, D_KY/tau = {r['D_KY/tau']:.4g} /time unit"),
+             f"lambda_max = {r['lambda_max']:.4g} /{self.time_unit}, "
+             f"D_KY {'=' if r['D_KY_closed'] else '>='} {r['D_KY']:.2f}, "
+             f"h_KS = {r['h_KS']:.4g} /{self.time_unit}, "
+             f"D_KY/tau = {r['D_KY/tau']:.4g} /{self.time_unit}"),
             "minimal faithful m: " + (str(self.minimal_m) if self.minimal_m is not None
                                       else f"none up to m={max(self.spectra)} "
                                            f"({self.minimal_m_reason})"),
@@ -414,6 +418,8 @@ class AnalysisOptions:
         Choose the models' neighbourhood size and ridge by time-series
         cross-validation (:func:`~skdelay._model_selection.select_model_options`)
         on the reported ``m``; the table is kept in ``AnalysisResult.model_selection``.
+    time_unit : str
+        Name of the unit of ``sample_dt`` (e.g. ``"us"``), used in every label.
     """
 
     m: tuple = (2, 3, 4, 5)
@@ -430,6 +436,7 @@ class AnalysisOptions:
     n_validation: int | None = None
     step: int | None = None
     select_model: bool = False
+    time_unit: str = "time unit"
 
     @classmethod
     def quick(cls, **changes):
@@ -603,6 +610,7 @@ def analyze_series(series, options=None, *, quick=False, random_state=0, n_jobs=
         delays=dips, m=ms[-1], spectra=faithful.spectra, validation=faithful.table,
         minimal_m=faithful.m_d, minimal_m_reason=faithful.reason, step=step,
         model_selection=None if selection is None else selection.table,
+        time_unit=opts.time_unit,
         runs={mm: r[0] for mm, r in faithful.runs.items() if r}, options=opts.to_dict(),
         timings=timings,
     )

@@ -141,7 +141,7 @@ def run_demo(*, delays=(50, 150, 400), n_samples=None, exact=True, n_exact=20,
             m=DEFAULT_M, tau_min=max(1, d - 15), tau_max=d + 15,
             sample_dt=float(data.sample_dt), n_queries=min(n_samples, 2000),
             n_run=min(n_samples // 4, 10_000), n_spectrum_steps=min(n_samples, 40_000),
-            model=DEMO_MODEL, flow=True)
+            model=DEMO_MODEL, flow=True, time_unit="us" if scale == 1000.0 else "time unit")
         res = analyze_series(
             data.series, options, random_state=random_state, n_jobs=n_jobs, verbose=verbose,
             progress=lambda msg, _d=delay: say(f"tau0 = {_d}: {msg}"),

@@ -112,29 +112,37 @@ def fig_distributions(result, sample_dt):
     plot_power_spectra(series, sample_dt=sample_dt, ax=ax2)
     ax1.set_title("histogram (invariant measure)")
     ax2.set_title("power spectrum")
+    ax2.set_xlabel(f"frequency [1/{result.time_unit}]")
     for ax in (ax1, ax2):
-        ax.legend(fontsize=7)
-        if ax.lines:
+        if ax.lines:  # the data in black, *before* the legend is drawn from the lines
             ax.lines[0].set_color("k")
             ax.lines[0].set_linewidth(2)
+        ax.legend(fontsize=7)
     return fig
 
 
 def fig_series(result, sample_dt):
-    """A stretch of the data above the same length of the model run."""
+    """The data above every model's whole free run; a collapse is marked where it starts."""
     plt = _plt()
-    m = _display_m(result)
-    run = result.runs.get(m, np.empty(0))
-    length = int(min(result.series.size, max(500, 6 * result.delay)))
-    fig, axes = plt.subplots(2, 1, figsize=(10, 3.8), sharex=True, sharey=True,
-                             layout="constrained")
-    t = np.arange(length) * sample_dt
-    axes[0].plot(t, result.series[:length], "k-", lw=0.6)
+    runs = {m: run for m, run in result.runs.items() if run.size}
+    fig, axes = plt.subplots(1 + len(runs), 1, figsize=(10, 1.6 * (1 + len(runs)) + 0.6),
+                             sharey=True, layout="constrained", squeeze=False)
+    axes = axes[:, 0]
+    length = max([result.series.size] + [r.size for r in runs.values()])
+    shown = min(result.series.size, length)
+    axes[0].plot(np.arange(shown) * sample_dt, result.series[:shown], "k-", lw=0.4)
     axes[0].set_ylabel("data")
-    if run.size:
-        axes[1].plot(t[: min(length, run.size)], run[:length], "-", lw=0.6, color=_color(m))
-    axes[1].set_ylabel(f"model m = {m}")
-    axes[1].set_xlabel("time")
+    for ax, (m, run) in zip(axes[1:], runs.items()):
+        ax.plot(np.arange(run.size) * sample_dt, run, "-", lw=0.4, color=_color(m))
+        ax.set_ylabel(f"model m = {m}")
+        at = result.validation.loc[m, "collapsed_at"] if m in result.validation.index else None
+        if at is not None and np.isfinite(at):
+            ax.axvline(at * sample_dt, color="#d62728", lw=1.2, ls="--")
+            ax.text(at * sample_dt, 1.0, " collapse", color="#d62728", fontsize=8,
+                    va="top", transform=ax.get_xaxis_transform())
+    for ax in axes:
+        ax.set_xlim(0, length * sample_dt)
+    axes[-1].set_xlabel(f"time [{result.time_unit}]")
     return fig
 
 
@@ -166,7 +174,7 @@ def _row_table(result, scale=1.0, unit="1/time unit"):
     ge = "" if r["D_KY_closed"] else ">= "
     rows = {
         "delay [samples]": f"{r['delay']} +- {r['delay_error']:.1f}",
-        "delay [time units]": f"{r['delay_time']:g}",
+        f"delay [{result.time_unit}]": f"{r['delay_time']:g}",
         "window length m of the model": r["m"],
         "positive Lyapunov exponents N": r["N"],
         f"largest exponent lambda_max [{unit}]": f"{r['lambda_max'] * scale:.4g}",
@@ -239,7 +247,12 @@ def analysis_sections(result, *, scale=1.0, unit="1/time unit", prefix=""):
     dt = result.sample_dt
     delays = result.delays.rename(columns={"delay": "dip centre", "half_width": "half width",
                                            "tau_min": "grid minimum", "tau_used": "model tau"})
-    val = result.validation.T
+    val = result.validation.copy()
+    for col in ("lambda_1", "h_ks"):  # the same units as the summary table
+        if col in val:
+            val[col] = val[col] * scale
+    val = val.rename(columns={"lambda_1": f"lambda_1 [{unit}]", "h_ks": f"h_KS [{unit}]",
+                              "collapsed_at": "collapsed at [step]"}).T
     rev = result.revivals
     intro = (
         f"<p>{html.escape(result.name)}: {result.series.size} samples, sampling interval "
@@ -282,7 +295,7 @@ def _close_all(sections):
 
 def write_analysis_report(result, path):
     """Write the self-contained HTML report of one analysis."""
-    sections = analysis_sections(result)
+    sections = analysis_sections(result, unit=f"1/{result.time_unit}")
     try:
         return write_html(path, f"skdelay analysis - {result.name}", sections)
     finally:

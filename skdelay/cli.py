@@ -238,6 +238,8 @@ def build_parser():
                     help="relative ridge of the local fits (default 1e-3; noisy data: 1e-2..1e-1)")
     an.add_argument("--flow", action="store_true",
                     help="the data sample a continuous-time flow: pin one exponent to zero")
+    an.add_argument("--time-unit", default="time unit", metavar="NAME",
+                    help="name of the unit of --dt used in every label, e.g. us or s")
     an.add_argument("--select-model", action="store_true",
                     help="choose the neighbours and ridge by time-series cross-validation of "
                          "one-step and iterated forecasts (overrides --neighbors/--ridge)")
@@ -345,7 +347,7 @@ def _prepare_analyze(args):
         result = _analysis.analyze_series(
             series.to_numpy(), **options, quick=args.quick, n_jobs=args.n_jobs,
             n_neighbors=args.neighbors, ridge=args.ridge, flow=args.flow,
-            select_model=args.select_model, step=args.step,
+            select_model=args.select_model, step=args.step, time_unit=args.time_unit,
             random_state=args.seed,
             verbose=0 if args.quiet else 10, progress=say,
             name=f"{Path(args.file).name}" + (f" [{series.name}]" if args.column else ""),
