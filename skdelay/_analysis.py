@@ -602,7 +602,7 @@ def analyze_series(series, options=None, *, quick=False, random_state=0, n_jobs=
         n_runs=opts.n_runs, model=opts.model, n_exponents=n_exp,
         max_doublings={mm: int(mm == ms[-1]) for mm in m_all},
         n_spectrum_steps=min(opts.n_spectrum_steps, s_val.size), flow=opts.flow,
-        sample_dt=dt, random_state=random_state, n_jobs=n_jobs)
+        sample_dt=dt, random_state=random_state, n_jobs=n_jobs, progress=say)
     timings["models"] = time.perf_counter() - t2
     timings["total"] = time.perf_counter() - t0
     return AnalysisResult(

@@ -263,7 +263,7 @@ def _lyapunov_verdicts(table, spectra, m_max):
 def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_min=1,
                       n_steps=None, n_runs=N_RUNS, model=None, n_exponents=None,
                       max_doublings=0, n_spectrum_steps=None, flow=False, chi_m=None,
-                      sample_dt=1.0, random_state=None, n_jobs=None):
+                      sample_dt=1.0, random_state=None, n_jobs=None, progress=None):
     """Smallest window length ``m`` whose iterated models reproduce the data.
 
     For ``m = m_min .. m_max``: fit ``Pipeline(TwoWindowEmbedding(m, tau_m),
@@ -327,6 +327,8 @@ def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_mi
         Initial histories and probes.
     n_jobs : int, default=None
         Workers of the delay scan and threads of the spectra's neighbour queries.
+    progress : callable, default=None
+        Called with a short message as each model is run and its spectrum taken.
 
     Returns
     -------
@@ -381,10 +383,12 @@ def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_mi
     noise = min(noise_level(models[m], s, random_state=seed) for m in m_values)
     obs_rng = np.random.default_rng(seed)
     rows, runs, spectra = {}, {}, {}
+    say = progress or (lambda _msg: None)
     for m in m_values:
         t_m = taus[m]
         dim = required_lags(m, t_m)
         skip = max(2 * t_m, 500)
+        say(f"m = {m}: {n_runs} free runs of {length} steps, then the Lyapunov spectrum")
         runs[m], row = [], {"tau": t_m, "collapsed_at": np.nan, "status": ""}
         for _ in range(n_runs):
             start = int(rng.randint(0, s.size - dim))
