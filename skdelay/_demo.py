@@ -44,6 +44,21 @@ class DemoResult:
     exact_note: str = ""
     paper: pd.DataFrame = field(default_factory=PAPER_TABLE.copy)
 
+    @property
+    def comparison(self):
+        """The paper's table in three column groups: paper, exact (simulator), this model."""
+        return comparison_table(self)
+
+    @property
+    def delay_table(self):
+        """The paper's second table: the delay per m (centre +- error) and the revivals."""
+        return delay_table(self.results)
+
+    @property
+    def cross_prediction(self):
+        """The paper's third table: chi(X, X) (row "O") and chi(X, Y_m) of each model's runs."""
+        return cross_prediction_table(self.results)
+
     def summary(self):
         """The table as text."""
         with pd.option_context("display.float_format", "{:.3g}".format,
@@ -58,9 +73,13 @@ class DemoResult:
             for delay, res in self.results.items():
                 res.write_files(tmp / f"delay_{delay}")
             self.table.to_csv(tmp / "table.csv")
+            self.comparison.to_csv(tmp / "paper_comparison.csv")
+            self.delay_table.to_csv(tmp / "delays_per_m.csv")
+            self.cross_prediction.to_csv(tmp / "cross_prediction.csv")
             write_json(tmp / "results.json", {
                 "unit": self.unit, "table": records(self.table),
                 "paper": records(self.paper),
+                "cross_prediction": records(self.cross_prediction),
                 "timings_s": {k: round(v, 1) for k, v in self.timings.items()},
             }, default=str)
             write_demo_report(self, tmp / "report.html")
@@ -89,6 +108,62 @@ def _exact_columns(spec, tau_time, scale):
             "exact D_KY": bound + _fmt(spec.kaplan_yorke_dimension),
             "exact h_KS": ("" if n_pos < k else ">= ") + _fmt(spec.ks_entropy * scale),
             "exact D_KY/tau": bound + _fmt(spec.kaplan_yorke_dimension / tau_time * scale)}
+
+
+#: the quantities of the paper's table and their column names (exponents per ms)
+_QUANTITIES = {"N": "N", "lambda_max": "lambda_max [1/ms]", "D_KY": "D_KY",
+               "h_KS": "h_KS [1/ms]", "D_KY/tau": "D_KY/tau [1/ms]"}
+
+
+def comparison_table(demo):
+    """Paper, exact and model values side by side (strings; ">=" marks a lower bound)."""
+    cols, rows = [], {}
+    for delay in demo.results:
+        row = {}
+        paper = demo.paper.loc[delay] if delay in demo.paper.index else None
+        model = demo.table.loc[delay]
+        for key, name in _QUANTITIES.items():
+            row[("paper", name)] = "" if paper is None else _fmt(paper[key])
+            row[("exact (simulator)", name)] = model.get(f"exact {key}", "")
+            row[("this model", name)] = str(model[key])
+        rows[delay] = row
+        cols = list(row)
+    out = pd.DataFrame.from_dict(rows, orient="index")
+    out.columns = pd.MultiIndex.from_tuples(cols, names=["source", "quantity"])
+    out.index.name = "tau0 [us]"
+    return out
+
+
+def delay_table(results):
+    """Delay estimate per m (dip centre +- error, samples) and the correlation revivals."""
+    rows = {}
+    for delay, res in results.items():
+        row = {}
+        for m, d in res.delays.iterrows():
+            mark = "" if bool(d.get("significant", True)) else " (no dip)"
+            row[f"m = {m}"] = (f"{d['delay'] * res.step:.1f} +- "
+                               f"{d['delay_error'] * res.step:.1f}{mark}")
+        rev = res.revivals
+        row["autocorrelation revival"] = rev.get("acf_strongest")
+        row["mutual information revival"] = rev.get("mi_strongest")
+        rows[delay] = row
+    out = pd.DataFrame.from_dict(rows, orient="index")
+    out.index.name = "tau0"
+    return out
+
+
+def cross_prediction_table(results):
+    """chi(X, X) (median over pairs of data segments) and chi(X, Y_m) per m and delay."""
+    cols = {}
+    for delay, res in results.items():
+        val = res.validation
+        col = {"O (data)": val.attrs.get("reference", {}).get("chi", np.nan)}
+        for m in val.index:
+            col[f"m = {m}"] = float(val.loc[m, "chi"])
+        cols[delay] = col
+    out = pd.DataFrame(cols)
+    out.columns.name = "tau0"
+    return out
 
 
 #: the demo's model settings, those of ``benchmarks/paper_table.py``: on this noisy data

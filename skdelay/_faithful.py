@@ -91,7 +91,9 @@ class FaithfulnessResult:
         ``collapsed_at`` (run step or NaN), and for every criterion in
         :data:`CRITERIA` its value, band (``*_band``: upper end of the
         data-vs-data distribution) and ``*_pass``; plus ``lambda_1``, ``d_ky``,
-        ``h_ks``, ``n_positive``.
+        ``h_ks``, ``n_positive``.  ``table.attrs["reference"]`` holds the median
+        data-vs-data distances (``chi`` is the paper's chi(X, X)) and
+        ``table.attrs["noise_level"]`` the noise added to the runs.
     m_d : int or None
         Smallest ``m`` from which on every model is faithful.
     reason : str
@@ -209,14 +211,14 @@ def _distance(kind, a, b, *, sample_dt, f_max, chi_m, chi_tau, seed):
 
 
 def _reference_bands(segs, **kw):
-    """Upper end of the data-vs-data distribution of each distance (all segment pairs)."""
+    """Median and upper end of the data-vs-data distribution of each distance."""
     pairs = [(i, j) for i in range(len(segs)) for j in range(i + 1, len(segs))]
-    bands = {}
+    medians, bands = {}, {}
     for kind in ("histogram", "spectrum", "chi"):
         ref = [_distance(kind, segs[i], segs[j], **kw) for i, j in pairs]
-        bands[kind] = float(max(np.quantile(ref, REFERENCE_QUANTILE),
-                                TOLERANCE * np.median(ref)))
-    return bands
+        medians[kind] = float(np.median(ref))
+        bands[kind] = float(max(np.quantile(ref, REFERENCE_QUANTILE), TOLERANCE * medians[kind]))
+    return medians, bands
 
 
 def _run_distances(runs, segs, **kw):
@@ -375,7 +377,7 @@ def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_mi
     seed = int(rng.randint(2**31))
     segs = _segments(s, length, MAX_SEGMENTS)
     f_max = _spectrum_cutoff(segs[0], sample_dt)
-    bands = _reference_bands(segs, sample_dt=sample_dt, f_max=f_max, chi_m=chi_m,
+    reference, bands = _reference_bands(segs, sample_dt=sample_dt, f_max=f_max, chi_m=chi_m,
                              chi_tau=chi_tau, seed=seed)
     window = max(2 * max(taus.values()), 200)
     models = {m: fit_delay_model(s, m, taus[m], model) for m in m_values}
@@ -451,5 +453,6 @@ def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_mi
     cols += ["lambda_1", "d_ky", "h_ks", "n_positive"]
     table = table[cols]
     table.attrs["noise_level"] = noise
+    table.attrs["reference"] = reference  # median data-vs-data distances (chi(X, X), ...)
     return FaithfulnessResult(table=table, m_d=m_d, reason=reason, models=models,
                               runs=runs, spectra=spectra, noise_level=noise)

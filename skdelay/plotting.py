@@ -198,7 +198,7 @@ def plot_lyapunov_spectrum(spectra, *, tau=None, rescaled=False, ax=None):
     return fig
 
 
-def plot_space_time(series, period=None, *, ax=None, cmap="viridis"):
+def plot_space_time(series, period=None, *, ax=None, cmap="viridis", vmin=None, vmax=None):
     """Space-time image: delay units ``theta`` down, ``sigma`` across.
 
     Parameters
@@ -209,6 +209,8 @@ def plot_space_time(series, period=None, *, ax=None, cmap="viridis"):
     period : float, optional
     ax : matplotlib Axes, optional
     cmap : str, default="viridis"
+    vmin, vmax : float, optional
+        Colour scale limits (give the same to panels that are compared).
 
     Returns
     -------
@@ -234,7 +236,7 @@ def plot_space_time(series, period=None, *, ax=None, cmap="viridis"):
     fig, ax = _axes(ax)
     width = period if period is not None else arr.shape[1]
     im = ax.imshow(arr, aspect="auto", origin="upper", cmap=cmap, interpolation="nearest",
-                   extent=(0.0, width, arr.shape[0] - 0.5, -0.5))
+                   extent=(0.0, width, arr.shape[0] - 0.5, -0.5), vmin=vmin, vmax=vmax)
     ax.set_xlabel("sigma (samples)")
     ax.set_ylabel("theta (delay units)")
     fig.colorbar(im, ax=ax)

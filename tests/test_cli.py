@@ -288,6 +288,17 @@ def test_demo_reduced(tmp_path, capsys, monkeypatch):
     assert float(str(table.loc[50, "D_KY"]).lstrip(">= ")) > 1 and table.loc[50, "N"] >= 1
     assert {"exact lambda_max", "exact D_KY"} <= set(table.columns)
     assert "D_KY" in stdout
+    # the paper's three tables: values in three column groups, delays per m, chi per m
+    comp = pd.read_csv(out / "paper_comparison.csv", header=[0, 1], index_col=0)
+    assert set(comp.columns.get_level_values(0)) == {"paper", "exact (simulator)",
+                                                     "this model"}
+    assert comp.loc[50, ("paper", "lambda_max [1/ms]")] == 2.5  # Buenner et al., table 1
+    assert comp.loc[50, ("paper", "D_KY")] == 3.4
+    per_m = pd.read_csv(out / "delays_per_m.csv", index_col="tau0")
+    assert {"m = 2", "m = 5", "autocorrelation revival"} <= set(per_m.columns)
+    chi = pd.read_csv(out / "cross_prediction.csv", index_col=0)
+    assert list(chi.index) == ["O (data)", "m = 2", "m = 3", "m = 4", "m = 5"]
+    assert 0 < chi.loc["O (data)", "50"] < chi.loc["m = 2", "50"] * 3
 
 
 def test_demo_bad_usage(tmp_path, capsys):
