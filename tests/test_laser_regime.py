@@ -6,7 +6,7 @@ from scipy.signal import welch
 
 from skdelay.systems import CO2LaserFeedback
 
-SEED = 1  # the seed of the scan (at tau = 50 the model has coexisting attractors)
+SEED = 1  # the seed of the scan (periodic windows lie close by at tau = 50)
 
 
 def test_pisarchik_preset_is_the_default_and_presets_override():
@@ -35,4 +35,4 @@ def test_buenner_preset_oscillates_near_25us_and_is_weakly_chaotic_at_tau_50():
     lam[np.argmin(np.abs(lam))] = 0.0  # the flow's zero exponent
     n_positive = int(np.sum(lam > spec.spread))
     assert 1 <= n_positive <= 2, spec.exponents
-    assert 0.8e-3 < spec.exponents[0] < 4e-3, spec.exponents
+    assert 0.8e-3 < spec.exponents[0] < 5e-3, spec.exponents
