@@ -60,8 +60,15 @@ def data_home():
     return path
 
 
+#: the simulator's parameter set (``CO2LaserFeedback.PRESETS``).  "buenner2000", the
+#: regime closest to the paper's experiment found by ``benchmarks/laser_regime.py``, is
+#: not yet the default: its delay transplant and correlation revivals differ from the
+#: present data's and are being re-validated (issue 12).
+LASER_PRESET = "pisarchik2001"
+
+
 def _laser_system(delay):
-    return CO2LaserFeedback(tau=float(delay))
+    return CO2LaserFeedback.from_preset(LASER_PRESET, tau=float(delay))
 
 
 def _laser_key(delay, n_samples):
@@ -82,8 +89,8 @@ def _generate_laser(delay, n_samples):
 def load_laser(delay=150, *, n_samples=100_000, cache=True):
     """Laser intensity with delayed feedback, like the CO2-laser data of the paper.
 
-    A :class:`~skdelay.systems.CO2LaserFeedback` run at the given delay,
-    sampled every microsecond, with a little dynamical noise on the feedback
+    A :class:`~skdelay.systems.CO2LaserFeedback` run (parameter set
+    :data:`LASER_PRESET`) at the given delay, sampled every microsecond, with a little dynamical noise on the feedback
     voltage, 0.5 % measurement noise, a 12-bit ADC and the paper's
     normalisation (mean 0, mean square 1).  Generated deterministically
     (fixed seed per delay) on first use and cached (see :func:`data_home`).
