@@ -52,7 +52,8 @@ def main(argv=None):
             res = minimal_embedding(x, tau=taus, m_max=5, model=model, random_state=args.seed)
             dt = time.perf_counter() - t0
             verdicts = " ".join("+" if f else "-" for f in res.table["faithful"])
-            rows.append({"tau": tau, "noise": noise, "m_d": res.m_d, "verdicts m=1..5": verdicts,
+            rows.append({"tau": tau, "noise": noise, "m_d": "none" if res.m_d is None else res.m_d,
+                         "verdicts m=1..5": verdicts,
                          "k/param, ridge": "default" if model is None else
                          f"{model.per_parameter:g}, {model.ridge:g}",
                          "seconds": round(dt, 1)})
