@@ -121,3 +121,24 @@ def test_default_delays_from_forecast_error_scan(mg17):
     tab, _ = minimal_embedding(mg17[:12_000], tau_grid=range(8, 28), m_min=2, m_max=3,
                                n_steps=3000, n_runs=2, random_state=0)
     assert tab["tau"].between(16, 18).all()
+
+
+@pytest.mark.slow
+def test_minimal_m_is_stable_against_measurement_noise():
+    """Mackey-Glass tau = 23: m_d of clean data and of 1 % noise agree within one.
+
+    (The full grid -- tau = 17, 23, 30 at 1e5 samples, 0 / 1 / 5 % noise -- is in
+    ``benchmarks/faithful_noise.py``.)
+    """
+    from skdelay.systems import MackeyGlass, measure
+
+    clean = MackeyGlass(tau=23.0).simulate(40_000, random_state=11)
+    found = {}
+    for noise in (0.0, 0.01):
+        x = measure(clean, noise=noise, random_state=12) if noise else clean
+        res = minimal_embedding(x, tau=23, m_min=1, m_max=4, n_runs=3, random_state=13)
+        print(noise, res.table[["status", "histogram", "histogram_band", "chi", "chi_band"]])
+        found[noise] = res.m_d
+        assert res.m_d is not None, res.reason
+        assert res.table.loc[res.m_d:, "faithful"].all()
+    assert abs(found[0.0] - found[0.01]) <= 1
