@@ -431,7 +431,7 @@ class AnalysisOptions:
     flow: bool = False
     n_exponents: int | None = None
     n_run: int | None = None
-    n_runs: int = 4
+    n_runs: int = 3
     n_spectrum_steps: int | None = None
     n_validation: int | None = None
     step: int | None = None
