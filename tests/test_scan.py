@@ -214,4 +214,6 @@ def test_progress_bar_and_shared_arrays(mg30, capsys, monkeypatch):
     err = capsys.readouterr().err
     assert "delay scan" in err and "task" in err
     np.testing.assert_array_equal(shared.to_numpy(), ref.to_numpy())
-    np.testing.assert_array_equal(shared.attrs["se"].to_numpy(), ref.attrs["se"].to_numpy())
+    # chunks of different sizes: numpy's std may round the last bit differently
+    np.testing.assert_allclose(shared.attrs["se"].to_numpy(), ref.attrs["se"].to_numpy(),
+                               rtol=1e-12)
