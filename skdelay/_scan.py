@@ -286,9 +286,9 @@ def scan_cells(s, q_t, lists, rk2, row_of, u_min, starts, m, k, radius2, width, 
                ridge, order, fallback, sq, n_exact):
     """Squared one-step errors of a chunk of taus: re-rank the candidates and fit, compiled.
 
-    For every start ``c`` of ``starts`` (one per tau) and query ``q`` of
-    ``q_t``: the candidates are ``lists[row_of[q - u_min]]`` (first window)
-    and ``lists[row_of[q - c - u_min]] + c`` (second window), kept if they are
+    For every query ``q`` of ``q_t`` and start ``c`` of ``starts`` (one per
+    tau): the candidates are ``lists[row_of[q - u_min]]`` (first window) and
+    ``lists[row_of[q - c - u_min]] + c`` (second window), kept if they are
     database times (``is_db``); duplicates are skipped with a small hash set.
     The ``k`` nearest by the exact 2m-dimensional distance (or, with
     ``radius2 > 0``, up to ``width`` within ``max(radius2, k-th distance)``)
@@ -297,18 +297,26 @@ def scan_cells(s, q_t, lists, rk2, row_of, u_min, starts, m, k, radius2, width, 
     n_queries`` of query ``i``) and counts in ``n_exact[tau_index]`` the
     queries whose neighbourhood is provably exact (k-th distance within
     ``rk2[q] + rk2[q - c]``).
+
+    Queries are the outer loop: a query's first-window candidates and their
+    first-window distances are read once and reused for every tau of the chunk
+    (the reads of scattered series values dominate the cost).
     """
     n_q = q_t.size
+    n_tau = starts.size
     n_batches = sq.shape[1]
     kk = lists.shape[1]
     p = 2 * m
+    first = np.empty(kk, dtype=np.int64)
+    first_d = np.empty(kk)
     cand = np.empty(2 * kk, dtype=np.int64)
     dist = np.empty(2 * kk)
     scratch = np.empty(2 * kk)
     size = 1
-    while size < 4 * kk:
+    while size < 4 * kk:  # load factor <= 1/2 keeps linear probing short
         size *= 2
-    table = np.empty(size, dtype=np.int64)
+    table = np.full(size, -1, dtype=np.int64)
+    touched = np.empty(2 * kk, dtype=np.int64)
     Vn = np.empty((width, p))
     yn = np.empty(width)
     w = np.empty(width)
@@ -318,43 +326,75 @@ def scan_cells(s, q_t, lists, rk2, row_of, u_min, starts, m, k, radius2, width, 
     rhs = np.empty(p)
     a = np.empty(p)
     n_max = is_db.size
-    for it in range(starts.size):
-        c0 = starts[it]
-        for i in range(n_q):
-            q = q_t[i]
-            r1 = row_of[q - u_min]
-            r2 = row_of[q - c0 - u_min]
-            for h in range(size):
-                table[h] = -1
-            nc = 0
-            for part in range(2):
-                row = r1 if part == 0 else r2
-                shift = 0 if part == 0 else c0
-                for c in range(kk):
-                    j = np.int64(lists[row, c])
-                    if j < 0:
-                        continue
-                    j += shift
-                    if j >= n_max or not is_db[j]:
-                        continue
-                    h = (j * 2654435761) & (size - 1)
-                    while table[h] != -1 and table[h] != j:
-                        h = (h + 1) & (size - 1)
-                    if table[h] == j:
-                        continue
-                    table[h] = j
-                    acc = 0.0
-                    for lag in range(m):
-                        d = s[q - lag] - s[j - lag]
-                        acc += d * d
-                        d = s[q - c0 - lag] - s[j - c0 - lag]
-                        acc += d * d
-                    cand[nc] = j
-                    dist[nc] = acc
-                    nc += 1
+    for i in range(n_q):
+        q = q_t[i]
+        r1 = row_of[q - u_min]
+        batch = (i * n_batches) // n_q
+        n1 = 0
+        for c in range(kk):  # first-window candidates: the same for every tau
+            j = np.int64(lists[r1, c])
+            if j < 0 or j >= n_max or not is_db[j]:
+                continue
+            h = (j * 2654435761) & (size - 1)
+            while table[h] != -1 and table[h] != j:
+                h = (h + 1) & (size - 1)
+            if table[h] == j:
+                continue
+            table[h] = j
+            touched[n1] = h
+            acc = 0.0
             for lag in range(m):
-                vq[lag] = s[q - lag]
+                d = s[q - lag] - s[j - lag]
+                acc += d * d
+            first[n1] = j
+            first_d[n1] = acc
+            n1 += 1
+        for lag in range(m):
+            vq[lag] = s[q - lag]
+        for it in range(n_tau):
+            c0 = starts[it]
+            r2 = row_of[q - c0 - u_min]
+            for lag in range(m):
                 vq[m + lag] = s[q - c0 - lag]
+            nc = 0
+            for c in range(n1):
+                j = first[c]
+                acc = first_d[c]
+                for lag in range(m):
+                    d = vq[m + lag] - s[j - c0 - lag]
+                    acc += d * d
+                cand[nc] = j
+                dist[nc] = acc
+                nc += 1
+            n2 = n1
+            for c in range(kk):  # second-window candidates of this tau
+                j = np.int64(lists[r2, c])
+                if j < 0:
+                    continue
+                j += c0
+                if j >= n_max or not is_db[j]:
+                    continue
+                h = (j * 2654435761) & (size - 1)
+                while table[h] != -1 and table[h] != j:
+                    h = (h + 1) & (size - 1)
+                if table[h] == j:
+                    continue
+                table[h] = j
+                touched[n2] = h
+                n2 += 1
+                acc = 0.0
+                for lag in range(m):
+                    d = vq[lag] - s[j - lag]
+                    acc += d * d
+                    d = vq[m + lag] - s[j - c0 - lag]
+                    acc += d * d
+                cand[nc] = j
+                dist[nc] = acc
+                nc += 1
+            # drop this tau's entries; they were inserted after the first-window ones,
+            # so the probe chains of those stay intact
+            for c in range(n1, n2):
+                table[touched[c]] = -1
             if nc == 0:
                 pred = fallback
             else:
@@ -377,7 +417,9 @@ def scan_cells(s, q_t, lists, rk2, row_of, u_min, starts, m, k, radius2, width, 
                 _, pred = fit_neighbourhood(Vn, yn, w, vq, ridge, order, fallback, mu, G, rhs,
                                             a)
             e = pred - s[q + 1]
-            sq[it, (i * n_batches) // n_q] += e * e
+            sq[it, batch] += e * e
+        for c in range(n1):
+            table[touched[c]] = -1
 
 
 def candidate_lists(s, m, members, needed, n_list, theiler, workers=1):
