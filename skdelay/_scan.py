@@ -109,6 +109,15 @@ def default_n_candidates(k):
     1.0 % / 4.8 % for ``2k`` candidates, 1.7 % / 2.9 % for ``4k`` and
     0.3 % / 2.0 % for ``8k`` (exact neighbourhoods: < 0.1 %, 1-4 %, 15-26 %).
     Below ``64`` the lists of small ``k`` miss too much of the other window.
+    The price is memory and time: the lists hold ``n_rows * n_candidates``
+    int32 per ``m`` (1 GB for 10^6 rows), so pass a smaller ``n_candidates``
+    (>= ``k``) for very long records when a few percent of sigma do not matter.
+
+    Examples
+    --------
+    >>> from skdelay._scan import default_n_candidates
+    >>> default_n_candidates(30), default_n_candidates(4)
+    (240, 64)
     """
     return max(8 * int(k), 64)
 
@@ -546,7 +555,24 @@ class _Shared:
 
 
 def cell_stats(sq, n_q):
-    """rms error and its standard error from per-batch sums of squared errors."""
+    """rms error and its standard error from per-batch sums of squared errors.
+
+    ``sq`` (n_cells, n_batches) holds the sums of the squared errors of the
+    ``n_q`` queries cut into contiguous batches (query ``i`` in batch
+    ``i * n_batches // n_q``).  The standard error of the mean square is the
+    spread of the batch means over ``sqrt(n_batches)``; the delta method gives
+    that of the rms, ``se / (2 rms)``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from skdelay._scan import cell_stats
+    >>> e2 = np.random.default_rng(0).normal(size=6400) ** 2   # errors of unit variance
+    >>> sq = np.bincount(np.arange(6400) * 32 // 6400, e2)[None, :]
+    >>> rms, se = cell_stats(sq, 6400)
+    >>> bool(abs(rms[0] - 1) < 3 * se[0]), bool(0.005 < se[0] < 0.015)  # ~ 1 / sqrt(2 n)
+    (True, True)
+    """
     n_b = sq.shape[1]
     counts = np.bincount(_batch_ids(n_q, n_b), minlength=n_b)
     msq = sq.sum(axis=1) / n_q
@@ -581,6 +607,21 @@ def scan_series(s, ms, taus, splits, options, *, random_state=None, n_jobs=None,
     Returns
     -------
     ScanResult
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from skdelay._scan import ScanOptions, scan_series
+    >>> rng = np.random.default_rng(0)
+    >>> s = np.zeros(3000)
+    >>> s[:9] = rng.uniform(size=9)
+    >>> for t in range(8, 2999):   # delay 7
+    ...     s[t + 1] = 0.5 * s[t] + 0.5 * (np.sin(3 * s[t - 6]) + np.sin(3 * s[t - 7]))
+    >>> db = np.arange(15, 2999)
+    >>> res = scan_series(s, [2], np.arange(1, 15), [(db, None)],
+    ...                   ScanOptions(k=20, theiler=5, n_queries=500), random_state=0)
+    >>> int(np.argmin(res.error[0, 0])) + 1, res.error.shape, bool(np.all(res.se > 0))
+    (7, (1, 1, 14), True)
     """
     rng = check_random_state(random_state)
     opt = options
