@@ -47,6 +47,7 @@ import math
 import os
 import shutil
 import tempfile
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from numbers import Real
 
@@ -93,6 +94,11 @@ REFINE_GROWTH = 4
 #: Tasks per worker and m: several chunks of taus per worker balance the unequal
 #: cost of the m values and of a loaded machine without re-sending lists too often.
 TASKS_PER_WORKER = 4
+#: Memory (bytes) of the default candidate lists of one m (int32, ``n_needed * K``): the
+#: list build costs ~ n_needed * K neighbour-query work too, so this also bounds its
+#: time.  10^5 rows keep the accurate 8k candidates; 10^6 rows get 67 (the paper-scale
+#: scan, where 240 took over 10 minutes of single-threaded k-d tree queries per m).
+LIST_BYTES = 1 << 28
 #: Arrays larger than this (bytes) are handed to process workers as one memory map
 #: written once, instead of joblib hashing and dumping them again for every task.
 SHARE_BYTES = 1 << 24
@@ -100,8 +106,11 @@ SHARE_BYTES = 1 << 24
 _MODES = {"none": "none", "segment": "segment", "radius": "radius"}
 
 
-def default_n_candidates(k):
-    """Candidates per window and query of the candidate search: ``max(8 k, 64)``.
+def default_n_candidates(k, n_rows=0):
+    """Candidates per window and query of the candidate search.
+
+    ``max(8 k, 64)``, reduced for long records so that the lists of ``n_rows``
+    needed times fit :data:`LIST_BYTES` (256 MB), but never below ``2 k``.
 
     Measured on 3*10^4 noisy 12-bit Mackey-Glass points (delay 100, ``k = 30``,
     m = 2 and 4, six delays around and away from the dip, 3000 queries): the
@@ -110,16 +119,19 @@ def default_n_candidates(k):
     0.3 % / 2.0 % for ``8k`` (exact neighbourhoods: < 0.1 %, 1-4 %, 15-26 %).
     Below ``64`` the lists of small ``k`` miss too much of the other window.
     The price is memory and time: the lists hold ``n_rows * n_candidates``
-    int32 per ``m`` (1 GB for 10^6 rows), so pass a smaller ``n_candidates``
-    (>= ``k``) for very long records when a few percent of sigma do not matter.
+    int32 per ``m`` (1 GB for 10^6 rows at 240) and cost as many neighbour
+    queries, hence the cap; pass ``n_candidates`` to override it.
 
     Examples
     --------
     >>> from skdelay._scan import default_n_candidates
-    >>> default_n_candidates(30), default_n_candidates(4)
-    (240, 64)
+    >>> default_n_candidates(30), default_n_candidates(4), default_n_candidates(30, 10**6)
+    (240, 64, 67)
     """
-    return max(8 * int(k), 64)
+    accurate = max(8 * int(k), 64)
+    if n_rows > 0:
+        accurate = min(accurate, LIST_BYTES // (4 * int(n_rows)))
+    return max(accurate, 2 * int(k))
 
 
 def neighbourhood_mode(value):
@@ -159,7 +171,8 @@ class ScanOptions:
     search : {"candidates", "exact"}, default="candidates"
         Neighbour search (see the module notes).
     n_candidates : int, default=None
-        Candidates per window for ``"candidates"``; None: :func:`default_n_candidates`.
+        Candidates per window for ``"candidates"``; None: :func:`default_n_candidates`
+        of the number of needed times (see :meth:`candidates_for`).
     neighbourhood : {"none", "segment", "radius"} or bool, default="none"
         Equal neighbourhood size for every ``m`` (normalised by :func:`neighbourhood_mode`).
     n_queries : int or None, default=None
@@ -172,8 +185,8 @@ class ScanOptions:
     Examples
     --------
     >>> from skdelay._scan import ScanOptions
-    >>> ScanOptions(k=10).n_candidates
-    80
+    >>> ScanOptions(k=10).candidates_for(1000), ScanOptions(k=10, n_candidates=12).n_candidates
+    (80, 12)
     >>> ScanOptions(k=10, n_candidates=5)  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
@@ -208,14 +221,14 @@ class ScanOptions:
         if self.search not in ("candidates", "exact"):
             raise ValueError(f"search must be 'candidates' or 'exact', got {self.search!r}.")
         if self.n_candidates is None:
-            n_cand = default_n_candidates(k)
+            n_cand = None
         else:
             n_cand = check_positive_int(self.n_candidates, name="n_candidates")
             if n_cand < k:
                 raise ValueError(
                     f"n_candidates={n_cand} is smaller than n_neighbors={k}: the re-ranked "
                     f"candidates could not fill a neighbourhood; use n_candidates >= {k} "
-                    "(default max(8 k, 64))."
+                    "(default max(8 k, 64), fewer for long records)."
                 )
         n_queries = (None if self.n_queries is None
                      else check_positive_int(self.n_queries, name="n_queries"))
@@ -228,6 +241,12 @@ class ScanOptions:
                             ("neighbourhood", neighbourhood_mode(self.neighbourhood)),
                             ("radius", None if self.radius is None else float(self.radius))):
             object.__setattr__(self, name, value)
+
+    def candidates_for(self, n_needed):
+        """Candidates per window for lists of ``n_needed`` times."""
+        if self.n_candidates is not None:
+            return self.n_candidates
+        return default_n_candidates(self.k, n_needed)
 
     def check_rows(self, n_rows, *, in_sample=True):
         """Raise ValueError unless ``n_rows`` rows leave a neighbourhood for every query."""
@@ -538,15 +557,25 @@ class _Shared:
     def __init__(self, enabled):
         self.enabled = enabled
         self.folder = None
+        self.count = 0
 
     def __call__(self, arr):
         if not self.enabled or arr.nbytes < SHARE_BYTES:
             return arr
         if self.folder is None:
             self.folder = tempfile.mkdtemp(prefix="skdelay-scan-")
-        path = os.path.join(self.folder, f"a{len(os.listdir(self.folder))}.npy")
+        self.count += 1
+        path = os.path.join(self.folder, f"a{self.count}.npy")
         np.save(path, arr)
         return np.load(path, mmap_mode="r")
+
+    def release(self, arrays):
+        """Delete the files of memory-mapped arrays whose tasks are done."""
+        for arr in arrays:
+            path = getattr(arr, "filename", None)
+            if isinstance(arr, np.memmap) and path and self.folder \
+                    and os.path.dirname(os.path.abspath(path)) == os.path.abspath(self.folder):
+                os.remove(path)
 
     def close(self):
         if self.folder is not None:
@@ -668,38 +697,58 @@ def scan_series(s, ms, taus, splits, options, *, random_state=None, n_jobs=None,
 
         bar = tqdm(total=0, desc="delay scan", unit="task")
 
+    def prepare(cell):
+        """The tasks of one (split, m) cell: query set, chunks, shared candidate lists."""
+        split, m, idx, n_q = cell
+        w, rad, per_m = plans[split]
+        db_m, order = per_m[m]
+        q_t = np.sort(order[:n_q])
+        o = dict(job_opt, theiler=w, radius=rad)
+        n_b = min(N_BATCHES, q_t.size)
+        n_chunks = max(1, min(idx.size, TASKS_PER_WORKER * n_workers))
+        chunks = [c for c in np.array_split(idx, n_chunks) if c.size]
+        if opt.search == "exact":
+            tasks = [delayed(_exact_task)(s, m, taus[c], db_m, q_t, o, n_b) for c in chunks]
+            return cell, q_t, chunks, tasks, ()
+        starts = np.array([second_window_start(m, int(t)) for t in taus[idx]])
+        arrays = _shared_candidates(s, m, db_m, q_t, np.unique(starts), opt, w, n_workers)
+        arrays = tuple(shared(a) if isinstance(a, np.ndarray) else a for a in arrays)
+        tasks = [delayed(_candidates_task)(
+            s, m, np.array([second_window_start(m, int(t)) for t in taus[c]]),
+            db_m, q_t, arrays, o, n_b) for c in chunks]
+        return cell, q_t, chunks, tasks, arrays
+
+    def execute(prepared, parallel):
+        (split, m, _, _), q_t, chunks, tasks, arrays = prepared
+        if bar is not None:
+            bar.total += len(tasks)
+            bar.refresh()
+        j = ms.tolist().index(m)
+        for c, (sq, n_ex) in zip(chunks, parallel(tasks)):
+            rms, sem = cell_stats(sq, q_t.size)
+            err[split, j, c] = rms
+            se[split, j, c] = sem
+            nq[split, j, c] = q_t.size
+            exact[split, j, c] = n_ex / q_t.size
+            if bar is not None:
+                bar.update(1)
+        shared.release(arrays)
+
     def run(cells, parallel):
         """cells: list of (split, m, tau indices, n_queries)."""
-        for split, m, idx, n_q in cells:
-            w, rad, per_m = plans[split]
-            db_m, order = per_m[m]
-            q_t = np.sort(order[:n_q])
-            o = dict(job_opt, theiler=w, radius=rad)
-            n_b = min(N_BATCHES, q_t.size)
-            n_chunks = max(1, min(idx.size, TASKS_PER_WORKER * n_workers))
-            chunks = [c for c in np.array_split(idx, n_chunks) if c.size]
-            if opt.search == "exact":
-                tasks = [delayed(_exact_task)(s, m, taus[c], db_m, q_t, o, n_b) for c in chunks]
-            else:
-                starts = np.array([second_window_start(m, int(t)) for t in taus[idx]])
-                arrays = _shared_candidates(s, m, db_m, q_t, np.unique(starts), opt, w,
-                                            n_workers)
-                arrays = tuple(shared(a) if isinstance(a, np.ndarray) else a for a in arrays)
-                tasks = [delayed(_candidates_task)(
-                    s, m, np.array([second_window_start(m, int(t)) for t in taus[c]]),
-                    db_m, q_t, arrays, o, n_b) for c in chunks]
-            if bar is not None:
-                bar.total += len(tasks)
-                bar.refresh()
-            for c, (sq, n_ex) in zip(chunks, parallel(tasks)):
-                rms, sem = cell_stats(sq, q_t.size)
-                j = ms.tolist().index(m)
-                err[split, j, c] = rms
-                se[split, j, c] = sem
-                nq[split, j, c] = q_t.size
-                exact[split, j, c] = n_ex / q_t.size
-                if bar is not None:
-                    bar.update(1)
+        if n_workers == 1 or len(cells) < 2:
+            for cell in cells:
+                execute(prepare(cell), parallel)
+            return
+        # build the next cell's candidate lists (k-d tree queries release the GIL) while
+        # the workers scan this one: at 10^6 rows the lists take as long as the scan
+        with ThreadPoolExecutor(max_workers=1) as pool:
+            ahead = pool.submit(prepare, cells[0])
+            for n in range(len(cells)):
+                prepared = ahead.result()
+                if n + 1 < len(cells):
+                    ahead = pool.submit(prepare, cells[n + 1])
+                execute(prepared, parallel)
 
     try:
         with Parallel(n_jobs=n_jobs, verbose=verbose) as parallel:
@@ -768,8 +817,8 @@ def _shared_candidates(s, m, db_t, q_t, starts, opt, theiler, n_workers):
     u_min = int(needed[0])
     row_of = np.full(int(needed[-1]) - u_min + 1, -1, dtype=np.int64)
     row_of[needed - u_min] = np.arange(needed.size)
-    lists, rk2 = candidate_lists(s, m, members, needed, opt.n_candidates, theiler,
-                                 workers=n_workers)
+    lists, rk2 = candidate_lists(s, m, members, needed, opt.candidates_for(needed.size),
+                                 theiler, workers=n_workers)
     is_db = np.zeros(s.size, dtype=np.bool_)
     is_db[db_t] = True
     return lists, rk2, row_of, u_min, is_db

@@ -152,7 +152,8 @@ def forecast_error_curve(series, m=(2, 3, 4, 5), tau=range(1, 101), *, n_neighbo
         tree per ``(m, tau)``.
     n_candidates : int, default=None
         Candidates per window and query for ``search="candidates"`` (default
-        ``max(8 k, 64)``, see :func:`skdelay._scan.default_n_candidates`).
+        ``max(8 k, 64)``, fewer for records so long that the lists of one ``m``
+        would exceed 256 MB, see :func:`skdelay._scan.default_n_candidates`).
     refine : bool, default=True
         With ``n_queries``: recompute the taus around each dip with 4x more
         queries per round (up to all) until every dip centre's standard error

@@ -41,8 +41,10 @@ def test_scan_options_normalise_and_default_candidates():
     assert [neighbourhood_mode(v) for v in (False, None, True, "segment", "radius")] == [
         "none", "none", "segment", "segment", "radius"]
     opts = ScanOptions(k=30, neighbourhood=True, ridge=0)
-    assert opts.neighbourhood == "segment" and opts.n_candidates == 240 == default_n_candidates(30)
-    assert ScanOptions(k=3).n_candidates == 64
+    assert opts.neighbourhood == "segment" and opts.candidates_for(10**5) == 240
+    assert default_n_candidates(30) == 240 and ScanOptions(k=3).candidates_for(500) == 64
+    # long records: the lists of one m stay within 256 MB, but at least 2k candidates
+    assert default_n_candidates(30, 10**6) == 67 and default_n_candidates(30, 10**7) == 60
     with pytest.raises(AttributeError):
         opts.k = 3  # frozen
 
