@@ -1,42 +1,63 @@
-"""Paper-scale delay scan: candidate neighbour search versus a plain k-d tree rebuild.
+"""Delay scan: the project's compiled candidate scan versus a plain k-d tree rebuild per cell.
 
-Scans sigma_m(tau) for m = 2..5 and tau = 1..500 (2000 models) on measured
-Mackey-Glass data (delay 150 samples, 0.5 % noise, 12-bit ADC, sample step 1)
-of N = 1e5 and 1e6 points, forecasting a random subset of ``--queries`` points
-against the full database, and prints wall time and peak memory (RSS of the
-main process plus its joblib workers, sampled every 0.2 s) and CPU time (main
-plus workers; on a shared machine wall time alone depends on the other load)
-of the whole scan.
+(a) ``--part a``: 10^5 measured Mackey-Glass points (delay 100 samples, 0.5 %
+noise, 12-bit ADC, sample step 1), m = 2..5, tau = 1..200, every point a
+query.  Three scans, timed in the same run with the same ``--n-jobs``:
 
-The plain method rebuilds a 2m-dimensional k-d tree for every (m, tau); it is
-timed on ``--plain-taus`` delays spread over 1..500 (same queries) and
-extrapolated linearly to the 500 delays, which the table says.  Its curve also
-serves as the reference for the accuracy of the candidate search.
+* **baseline** -- written here, independent of skdelay's kernels: for every
+  (m, tau) a ``scipy.spatial.cKDTree`` on the 2m-dimensional vectors, a k-NN
+  query of every point (Theiler-excluded) and a batched local linear fit in
+  numpy (centred normal equations with the same relative ridge), one joblib
+  task per cell.  It is run on ``--baseline-taus`` delays spread over the
+  grid (plus the dip) and extrapolated linearly to all 200 (the table says so);
+* **project, full precision** -- ``forecast_error_curve(..., n_queries=None,
+  refine=False)`` on the same cells (every point a query), which gives the
+  accuracy of the candidate search against the baseline (the exact search);
+* **project, default** -- the whole grid with a coarse pass of
+  ``--queries`` random queries and refinement at the dips (every point a
+  query there, until the dip centre's standard error is below 0.2 samples).
+
+(b) ``--part b``: the paper-scale run, 10^6 points (delay 150), m = 2..5, tau =
+1..500, coarse 10^4 queries, refined at the dip: wall time, CPU time and peak
+memory (PSS of the main process plus its joblib workers, sampled every 0.2 s).
+
+The machine may be shared: the header records the load average before each run.
 
 Run (2 cores)::
 
-    python benchmarks/delay_scan.py --sizes 100000 1000000 --queries 10000 --n-jobs 2
+    nice -n 10 python benchmarks/delay_scan.py --part a --n-jobs 2
+    nice -n 10 python benchmarks/delay_scan.py --part b --n-jobs 2
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import threading
 import time
 
 import numpy as np
 import psutil
+from joblib import Parallel, delayed
+from scipy.spatial import cKDTree
 
-from skdelay._selection import forecast_error_curve, locate_dips
+from skdelay import forecast_error_curve, required_lags, two_window_columns
 from skdelay.systems import MackeyGlass, measure
+
+RIDGE = 1e-3
+K = 30
 
 
 class Usage:
-    """Peak resident memory and CPU time of this process and its children (sampled).
+    """Peak memory and CPU time of this process and its children (sampled).
 
-    Memory is the peak of the summed RSS (every 0.2 s); CPU time is the user +
-    system time spent during the block by this process and by every child seen
-    (joblib's loky workers persist between calls, so their times are deltas).
+    Memory is the peak of the summed PSS (proportional set size, every 0.2 s:
+    pages shared between processes -- the memory-mapped candidate lists the
+    workers read -- are split between them, so the sum is the physical memory
+    used; RSS where PSS is not available); CPU time is
+    the user + system time spent during the block by this process and by every
+    child seen (joblib's loky workers persist between calls, so their times are
+    deltas).
     """
 
     def __init__(self, interval=0.2):
@@ -50,14 +71,20 @@ class Usage:
         t = proc.cpu_times()
         return t.user + t.system
 
+    @staticmethod
+    def _memory(proc):
+        try:
+            return proc.memory_full_info().pss
+        except (AttributeError, psutil.Error):
+            return proc.memory_info().rss
+
     def _poll(self):
         me = psutil.Process()
-        total = me.memory_info().rss
+        total = 0
         for proc in [me, *me.children(recursive=True)]:
             try:
                 cpu = self._cpu(proc)
-                if proc is not me:
-                    total += proc.memory_info().rss
+                total += self._memory(proc)
             except psutil.Error:
                 continue
             self._first.setdefault(proc.pid, cpu)
@@ -84,65 +111,169 @@ class Usage:
         return sum(self._last[p] - self._first[p] for p in self._last)
 
 
-def timed(fn, **kwargs):
+def timed(fn, *args, **kwargs):
     with Usage() as usage:
         t0 = time.perf_counter()
-        out = fn(**kwargs)
+        out = fn(*args, **kwargs)
         wall = time.perf_counter() - t0
     return out, wall, usage.peak / 2**30, usage.cpu
 
 
+# ----------------------------------------------------------------------------- baseline
+def baseline_cell(s, m, tau, k, theiler, ridge, first, chunk=20_000):
+    """rms one-step error of one cell: k-d tree rebuild + batched local linear fits (numpy).
+
+    Rows are the times ``first .. len(s) - 2`` (``first``: the largest lag of the grid,
+    as in the project's scan); every row is a query and a neighbour.
+    """
+    cols = two_window_columns(m, tau)
+    t = np.arange(first, s.size - 1)
+    V = s[t[:, None] - cols]
+    tree = cKDTree(V)
+    kq = k + 2 * theiler + 1
+    p = cols.size
+    sq = 0.0
+    for lo in range(0, t.size, chunk):
+        q = slice(lo, min(lo + chunk, t.size))
+        _, pos = tree.query(V[q], k=kq)
+        keep = np.abs(pos - np.arange(q.start, q.stop)[:, None]) > theiler
+        pos = np.take_along_axis(pos, np.argsort(~keep, axis=1, kind="stable")[:, :k], 1)
+        Vn, yn = V[pos], s[t[pos] + 1]
+        mu, ybar = Vn.mean(axis=1), yn.mean(axis=1)
+        D = Vn - mu[:, None, :]
+        G = np.einsum("nki,nkj->nij", D, D)
+        rhs = np.einsum("nki,nk->ni", D, yn - ybar[:, None])
+        lam = ridge * np.trace(G, axis1=1, axis2=2) / p
+        G[:, np.arange(p), np.arange(p)] += lam[:, None]
+        a = np.linalg.solve(G, rhs[..., None])[..., 0]
+        pred = ybar + np.einsum("ni,ni->n", a, V[q] - mu)
+        sq += float(np.sum((pred - s[t[q] + 1]) ** 2))
+    return np.sqrt(sq / t.size) / s.std()
+
+
+def baseline_scan(s, ms, taus, theiler, n_jobs, first):
+    cells = [(m, tau) for m in ms for tau in taus]
+    out = Parallel(n_jobs=n_jobs)(delayed(baseline_cell)(s, m, tau, K, theiler, RIDGE, first)
+                                  for m, tau in cells)
+    return np.array(out).reshape(len(ms), len(taus)).T
+
+
+def load():
+    return " / ".join(f"{v:.1f}" for v in os.getloadavg())
+
+
+def series(n, delay):
+    x = MackeyGlass(tau=float(delay)).simulate(n, random_state=0)
+    return measure(x, noise=0.005, bits=12, random_state=0)
+
+
+# ----------------------------------------------------------------------------- parts
+def part_a(args):
+    ms, taus = (2, 3, 4, 5), np.arange(1, 201)
+    s = series(args.n_a, 100)
+    sub = np.unique(np.r_[np.linspace(1, 200, args.baseline_taus).round().astype(int), 100])
+    warm = series(4000, 20)  # start the workers and load the compiled kernels
+    forecast_error_curve(warm, m=ms, tau=range(1, 30), n_queries=300, n_jobs=args.n_jobs)
+    baseline_cell(warm, 2, 5, K, 5, RIDGE, 10)
+    common = {"m": ms, "n_neighbors": K, "ridge": RIDGE, "random_state": 0,
+              "n_jobs": args.n_jobs}
+    print(f"# (a) load average before: {load()}", flush=True)
+    default, t_def, mem_def, cpu_def = timed(forecast_error_curve, s, tau=taus,
+                                             n_queries=args.queries, **common)
+    w = int(default.attrs["theiler_window"])
+    print(f"project default: {t_def:.1f} s wall, {cpu_def:.1f} s CPU", flush=True)
+    full, t_full, _, cpu_full = timed(forecast_error_curve, s, tau=sub, refine=False,
+                                      **common)
+    print(f"project full precision ({sub.size} taus): {t_full:.1f} s wall", flush=True)
+    first = required_lags(5, 200) - 1  # the rows of the project's scan of this grid
+    base, t_base, _, cpu_base = timed(baseline_scan, s, ms, sub, w, args.n_jobs, first)
+    print(f"baseline ({sub.size} taus): {t_base:.1f} s wall", flush=True)
+    base = np.asarray(base)
+    scale = taus.size / sub.size
+    rel_full = np.abs(full.to_numpy() / base - 1)
+    rel_def = np.abs(default.loc[sub].to_numpy() / base - 1)
+    refined = ~default.attrs["coarse"].loc[sub].to_numpy()
+    from skdelay._dips import locate_dips
+
+    dips = locate_dips(default)
+    print()
+    print(f"(a) N = {s.size}, m = 2..5, tau = 1..200 (800 cells), k = {K}, Theiler {w}, "
+          f"n_jobs = {args.n_jobs}; Mackey-Glass delay 100, 0.5 % noise, 12 bits; "
+          f"load average before the run {load()} (2 shared cores).")
+    print("| scan | cells timed | wall | CPU | wall / CPU for 800 cells | "
+          "speed-up vs baseline, wall / CPU |")
+    print("|---|---|---|---|---|---|")
+    tb, cb = t_base * scale, cpu_base * scale
+    print(f"| baseline: cKDTree rebuild + numpy fit, every point a query | {sub.size * 4} | "
+          f"{t_base:.1f} s | {cpu_base:.1f} s | {tb:.0f} s / {cb:.0f} s (extrapolated "
+          f"x{scale:.1f}) | 1 |")
+    tf, cf = t_full * scale, cpu_full * scale
+    print(f"| project, full precision (every point a query) | {sub.size * 4} | {t_full:.1f} s | "
+          f"{cpu_full:.1f} s | {tf:.0f} s / {cf:.0f} s (extrapolated) | "
+          f"{tb / tf:.1f}x / {cb / cf:.1f}x |")
+    print(f"| project, default ({args.queries} coarse queries, refined at the dip) | 800 | "
+          f"{t_def:.1f} s | {cpu_def:.1f} s | {t_def:.0f} s / {cpu_def:.0f} s (measured) | "
+          f"{tb / t_def:.1f}x / {cb / cpu_def:.1f}x |")
+    print()
+    print("accuracy against the baseline (the exact k-NN), |sigma / sigma_exact - 1| over the "
+          "timed cells:")
+    print(f"  full precision: median {np.median(rel_full):.4f}, max {rel_full.max():.4f}")
+    print(f"  default, refined cells ({refined.sum()}): "
+          f"{_summary(rel_def[refined])}; coarse cells ({(~refined).sum()}): "
+          f"{_summary(rel_def[~refined])} (includes the query subsampling; median "
+          f"se/sigma of those cells "
+          f"{np.median((default.attrs['se'] / default).loc[sub].to_numpy()[~refined]):.4f})")
+    print(f"  provably exact neighbourhoods (full precision, per m): "
+          f"{ {k: round(v, 4) for k, v in full.attrs['exact_fraction'].items()} }")
+    print(f"  peak memory (PSS, main + workers) of the default scan: {mem_def:.2f} GB")
+    print("dips of the default scan (true delay 100):")
+    print(dips[["delay", "delay_error", "centre_se", "tau_best", "z", "significant"]]
+          .round(3).to_string())
+
+
+def _summary(values):
+    if values.size == 0:
+        return "none"
+    return f"median {np.median(values):.4f}, max {values.max():.4f}"
+
+
+def part_b(args):
+    ms, taus = (2, 3, 4, 5), range(1, 501)
+    s = series(args.n_b, 150)
+    warm = series(4000, 20)
+    forecast_error_curve(warm, m=ms, tau=range(1, 30), n_queries=300, n_jobs=args.n_jobs)
+    print(f"# (b) load average before: {load()}", flush=True)
+    fe, wall, mem, cpu = timed(forecast_error_curve, s, m=ms, tau=taus, n_queries=args.queries,
+                               random_state=0, n_jobs=args.n_jobs)
+    from skdelay._dips import locate_dips
+
+    dips = locate_dips(fe)
+    q = fe.attrs["queries"]
+    print()
+    print(f"(b) N = {s.size}, m = 2..5, tau = 1..500 (2000 cells), {args.queries} coarse queries, "
+          f"refined at the dip, n_jobs = {args.n_jobs}; Mackey-Glass delay 150, 0.5 % noise, "
+          f"12 bits; load average after the run {load()} (2 shared cores).")
+    print("| wall | CPU | peak memory (PSS, main + workers) | refined cells | "
+          "most queries in a cell |")
+    print("|---|---|---|---|---|")
+    print(f"| {wall:.0f} s | {cpu:.0f} s | {mem:.2f} GB | {int((~fe.attrs['coarse']).sum().sum())} "
+          f"| {int(q.max().max())} |")
+    print(f"provably exact neighbourhoods (per m): "
+          f"{ {k: round(v, 4) for k, v in fe.attrs['exact_fraction'].items()} }")
+    print(dips[["delay", "delay_error", "centre_se", "tau_best", "z", "significant"]]
+          .round(3).to_string())
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--sizes", type=float, nargs="+", default=[1e5, 1e6])
+    parser.add_argument("--part", choices=["a", "b"], default="a")
+    parser.add_argument("--n-a", type=int, default=100_000)
+    parser.add_argument("--n-b", type=int, default=1_000_000)
     parser.add_argument("--queries", type=int, default=10_000)
-    parser.add_argument("--max-tau", type=int, default=500)
-    parser.add_argument("--plain-taus", type=int, default=10)
-    parser.add_argument("--delay", type=int, default=150)
+    parser.add_argument("--baseline-taus", type=int, default=6)
     parser.add_argument("--n-jobs", type=int, default=2)
     args = parser.parse_args()
-    ms = (2, 3, 4, 5)
-    taus = range(1, args.max_tau + 1)
-    sub = np.unique(np.linspace(1, args.max_tau, args.plain_taus).round().astype(int))
-    sub = np.unique(np.r_[sub, args.delay])
-    rows = []
-    warm = measure(MackeyGlass(tau=20.0).simulate(3000, random_state=1), noise=0.005)
-    for search in ("candidates", "exact"):  # start the workers and load compiled kernels
-        forecast_error_curve(warm, m=ms, tau=range(1, 30), n_queries=100, search=search,
-                             n_jobs=args.n_jobs)
-    for n in (int(v) for v in args.sizes):
-        x = MackeyGlass(tau=float(args.delay)).simulate(n, random_state=0)
-        s = measure(x, noise=0.005, bits=12, random_state=0)
-        common = {"m": ms, "n_queries": args.queries, "random_state": 0, "n_jobs": args.n_jobs}
-        fast, t_fast, mem_fast, cpu_fast = timed(forecast_error_curve, series=s, tau=taus,
-                                                 **common)
-        print(f"N={n}: candidates {t_fast:.0f} s wall, {cpu_fast:.0f} s CPU", flush=True)
-        plain, t_plain, mem_plain, cpu_plain = timed(forecast_error_curve, series=s, tau=sub,
-                                                     search="exact", **common)
-        scale = len(taus) / len(sub)
-        rel = (fast.loc[sub] / plain - 1).abs()
-        dips = locate_dips(fast.loc[max(1, args.delay - 40):args.delay + 40])
-        rows.append((n, t_fast, cpu_fast, mem_fast, t_plain, len(sub), t_plain * scale,
-                     cpu_plain * scale, mem_plain, float(rel.max().max()),
-                     float(rel.median().median()), fast.attrs["exact_fraction"], dips))
-        print(f"N={n}: plain {t_plain:.0f} s wall, {cpu_plain:.0f} s CPU for {len(sub)} taus",
-              flush=True)
-    print()
-    print(f"Delay scan m=2..5, tau=1..{args.max_tau} ({4 * len(taus)} models), "
-          f"{args.queries} random query points, n_jobs={args.n_jobs}; Mackey-Glass delay "
-          f"{args.delay}, 0.5 % noise, 12 bits.")
-    print("| N | candidates: wall / CPU | peak RSS | plain rebuild: measured wall | "
-          "all taus, extrapolated: wall / CPU | peak RSS | speed-up wall / CPU | "
-          "rel. diff of sigma max / median |")
-    print("|---|---|---|---|---|---|---|---|")
-    for (n, tf, cf, mf, tp, ns, tpa, cpa, mp, rmax, rmed, _, _) in rows:
-        print(f"| {n:.0e} | {tf:.0f} s / {cf:.0f} s | {mf:.2f} GB | {tp:.0f} s ({ns} taus) | "
-              f"{tpa:.0f} s / {cpa:.0f} s (x{len(taus) / ns:.0f}) | {mp:.2f} GB | "
-              f"{tpa / tf:.1f}x / {cpa / cf:.1f}x | {rmax:.3f} / {rmed:.3f} |")
-    for (n, *_, exact, dips) in rows:
-        print(f"\nN={n:.0e}: queries whose candidate neighbours are provably the exact k-NN (mean over tau): {exact}")
-        print(f"delay by m (true {args.delay}):")
-        print(dips.round(2).to_string())
+    (part_a if args.part == "a" else part_b)(args)
 
 
 if __name__ == "__main__":

@@ -15,6 +15,9 @@ def _second_window_start(m, tau):
     return max(tau - 1 - (m - 1) // 2, 0)
 
 
+second_window_start = _second_window_start  # internal-public name for the scan kernels
+
+
 def two_window_columns(m, tau):
     """Lag-column indices of the two-window vector ``v_n(m, tau)``.
 

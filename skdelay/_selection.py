@@ -1,39 +1,23 @@
-"""Delay selection from the one-step forecast error sigma_m(tau).
+"""Delay selection from the one-step forecast error sigma_m(tau): the public API.
 
-The scan works on the 1-D series: a row ``t`` of the database is the vector
-``v_t(m, tau)`` (gathered from the series on the fly) with target ``s[t+1]``,
-so nothing of size (n_rows, n_lags) is ever materialised.
+:func:`forecast_error_curve` scans a series, :class:`DelaySelectorCV` scans a
+lag matrix the scikit-learn way; both run the kernels of
+:mod:`skdelay._scan` over a validated :class:`~skdelay._scan.ScanOptions` and
+locate the dips with :func:`skdelay._dips.locate_dips` (re-exported here).
 
-Two neighbour searches are available:
-
-* ``"exact"`` -- a plain k-d tree on the 2m-dimensional vectors, rebuilt for
-  every ``(m, tau)``.
-* ``"candidates"`` (default, much faster) -- the second window of row ``t``
-  is the first window of row ``t - c`` (``c`` the window start), so one k-d
-  tree per ``m`` on the m-dimensional windows serves every ``tau``: each
-  needed time gets its ``K`` nearest windows once, and for each ``tau`` the
-  candidates of a query ``q`` -- the neighbours of its first window and those
-  of its second window, shifted by ``c`` -- are re-ranked by the exact
-  2m-dimensional distance (numba).  Every point outside both lists is at
-  least ``r_K(q)^2 + r_K(q - c)^2`` away, so when the ``k``-th re-ranked
-  distance is below that bound the neighbours are provably the exact k-NN;
-  otherwise they are the best ``k`` of the ``2K`` candidates
-  (``exact_fraction`` in ``DataFrame.attrs``; about 2 % change of sigma in
-  ``benchmarks/delay_scan.py``).  Taking candidates close in either window
-  matters: with first-window candidates only, rare states get neighbours far
-  away in the second window, and the extrapolated forecasts can turn the
-  delay dip into a peak.
+Scale: the series is rescaled by a power of two (``Standardiser``, exact) before
+the scan, and sigma is normalised by the standard deviation, so the curve of
+``s * 1e300`` or ``s * 1e-300`` is that of ``s``.
 """
 
 from __future__ import annotations
 
 import numbers
+import warnings
 
 import numpy as np
 import pandas as pd
-from joblib import Parallel, delayed, effective_n_jobs
-from numba import njit
-from scipy.spatial import cKDTree
+from joblib import Parallel, delayed
 from scipy.stats import rankdata
 from sklearn.base import BaseEstimator, RegressorMixin, clone
 from sklearn.model_selection import TimeSeriesSplit, check_cv
@@ -43,17 +27,29 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 from skdelay._checks import check_positive_int, check_random_state, check_series
 from skdelay._correlation import autocorrelation
 from skdelay._dips import locate_dips
-from skdelay._embedding import (
-    TwoWindowEmbedding,
-    _second_window_start,
-    required_lags,
-    two_window_columns,
-)
+from skdelay._embedding import TwoWindowEmbedding, required_lags, two_window_columns
 from skdelay._local_linear import LocalLinearDelayMap
-from skdelay._neighbours import RADIUS_CAP, chunk_slices, fit_from_series, tree_neighbours
+from skdelay._neighbours import Standardiser
+from skdelay._scan import N_BATCHES, ScanOptions, cell_stats, scan_series
 from skdelay._windows import series_from_lagged
 
-__all__ = ["DelaySelectorCV", "forecast_error_curve", "locate_dips"]
+__all__ = ["DelaySelectorCV", "NoDipWarning", "forecast_error_curve", "locate_dips"]
+
+#: Window lengths scanned by default (the paper's m = 2..5); DelaySelectorCV keeps
+#: those the lag matrix can hold.
+DEFAULT_M = (2, 3, 4, 5)
+#: Neighbourhood size of the default local linear model (the paper's choice for N ~ 10^5).
+DEFAULT_NEIGHBOURS = 30
+#: Fewest neighbours a default model is allowed to shrink to on short inputs: two
+#: points define no local structure, three give a noisy but defined local mean/slope.
+MIN_NEIGHBOURS = 3
+#: A series whose spread relative to its level is below this differs only by rounding
+#: (float64 has 2.2e-16 resolution): no dynamics can be read from it.
+MIN_RELATIVE_SPREAD = 1e-13
+
+
+class NoDipWarning(UserWarning):
+    """No window length shows a significant forecast-error dip: the delay is unknown."""
 
 
 # ----------------------------------------------------------------------------- grids, options
@@ -76,334 +72,45 @@ def theiler_from(s, theiler_window):
     """``"auto"``: the 1/e decorrelation time of the series (>= 1 sample)."""
     if isinstance(theiler_window, str):
         if theiler_window != "auto":
-            raise ValueError(f"theiler_window must be 'auto' or an int >= 0, got {theiler_window!r}.")
+            raise ValueError(f"theiler_window must be 'auto' or an int >= 0, got "
+                             f"{theiler_window!r}.")
         acf = autocorrelation(s, min(s.size - 1, 5000))
         below = np.flatnonzero(acf < np.exp(-1.0))
         return int(max(1, below[0] if below.size else acf.size))
     return check_positive_int(theiler_window, name="theiler_window", minimum=0)
 
 
-# ----------------------------------------------------------------------------- kernels
-@njit(cache=True)
-def _kth_smallest(a, k):
-    """k-th smallest (0-based) value of ``a``, reordering ``a`` in place (quickselect)."""
-    lo, hi = 0, a.size - 1
-    while lo < hi:
-        pivot = a[(lo + hi) // 2]
-        i, j = lo, hi
-        while i <= j:
-            while a[i] < pivot:
-                i += 1
-            while a[j] > pivot:
-                j -= 1
-            if i <= j:
-                a[i], a[j] = a[j], a[i]
-                i += 1
-                j -= 1
-        if k <= j:
-            hi = j
-        elif k >= i:
-            lo = i
-        else:
-            break
-    return a[k]
+def rescaled(s, name="series"):
+    """``(z, std)``: ``s`` divided by a power of two near its rms, and the std of ``z``.
 
-
-@njit(cache=True)
-def _union_rerank(s, q_t, lists, ldist, rk2, row_of, u_min, start, m, k, radius2, is_db,
-                  nb_t, weight, reach, bound):
-    """Exact two-window distances over the union of each query's two candidate lists.
-
-    Candidates of query ``q`` are its first-window neighbours ``lists[q]`` and
-    its second-window neighbours ``lists[q - start] + start``; ``ldist`` holds
-    their list distances (one window), so only the other window is read from
-    the series.  Duplicates are skipped with a small per-query hash set.  The
-    ``k`` nearest (or, with ``radius2 > 0``, every candidate within
-    ``max(radius2, k-th distance)``) go to ``nb_t``/``weight``; ``reach`` is the
-    squared distance covered and ``bound = rk2[q] + rk2[q - start]`` a lower
-    bound of the squared distance of every point outside both lists, so
-    ``reach <= bound`` certifies the exact k-NN.
+    Raises ValueError for a series that is constant up to rounding.
     """
-    n = q_t.size
-    kk = lists.shape[1]
-    width = nb_t.shape[1]
-    cand = np.empty(2 * kk, dtype=np.int64)
-    dist = np.empty(2 * kk)
-    scratch = np.empty(2 * kk)
-    size = 1
-    while size < 4 * kk:
-        size *= 2
-    table = np.empty(size, dtype=np.int64)
-    n_max = is_db.size
-    for i in range(n):
-        q = q_t[i]
-        r1 = row_of[q - u_min]
-        r2 = row_of[q - start - u_min]
-        table[:] = -1
-        nc = 0
-        for part in range(2):
-            row = r1 if part == 0 else r2
-            shift = 0 if part == 0 else start
-            for c in range(kk):
-                j = np.int64(lists[row, c])
-                if j < 0:
-                    continue
-                j += shift
-                if j >= n_max or not is_db[j]:
-                    continue
-                h = (j * 2654435761) & (size - 1)
-                while table[h] != -1 and table[h] != j:
-                    h = (h + 1) & (size - 1)
-                if table[h] == j:
-                    continue
-                table[h] = j
-                acc = np.float64(ldist[row, c])  # the list's window ...
-                qa = q - (start if part == 0 else 0)  # ... plus the other one
-                ja = j - (start if part == 0 else 0)
-                for lag in range(m):
-                    d = s[qa - lag] - s[ja - lag]
-                    acc += d * d
-                cand[nc] = j
-                dist[nc] = acc
-                nc += 1
-        bound[i] = rk2[r1] + rk2[r2]
-        if nc == 0:
-            reach[i] = np.inf
-            for c in range(width):
-                nb_t[i, c] = q
-                weight[i, c] = False
-            continue
-        scratch[:nc] = dist[:nc]
-        r = max(_kth_smallest(scratch[:nc], min(k, nc) - 1), radius2)
-        reach[i] = r
-        used = 0
-        for c in range(nc):
-            if dist[c] <= r and used < width:
-                nb_t[i, used] = cand[c]
-                weight[i, used] = True
-                used += 1
-        for c in range(used, width):
-            nb_t[i, c] = q
-            weight[i, c] = False
-
-
-def _gather(s, t, cols):
-    return s[t[..., None] - cols]
-
-
-def _fit_errors(s, q_t, nb_t, weight, cols, order, ridge, fallback):
-    """Squared one-step errors of the local fits for queries q_t with neighbours nb_t."""
-    pred = fit_from_series(s, q_t, nb_t, weight, cols, float(ridge), int(order), fallback)
-    return (pred - s[q_t + 1]) ** 2
-
-
-_chunks = chunk_slices
-
-
-def _errors_exact(s, m, taus, db_t, q_t, *, k, order, ridge, radius, theiler, workers):
-    sq = np.zeros(len(taus))
-    exact = np.ones(len(taus))
-    fallback = float(s[db_t + 1].mean())
-    for i, tau in enumerate(taus):
-        cols = two_window_columns(m, tau)
-        tree = cKDTree(_gather(s, db_t, cols))
-        Vq = _gather(s, q_t, cols)
-        kk = k * (RADIUS_CAP if radius else 1)
-        for sl in _chunks(q_t.size, kk * 2 * m):
-            pos, weight = tree_neighbours(
-                tree, Vq[sl], k, radius=radius,
-                query_ids=None if theiler is None else q_t[sl], fit_ids=db_t,
-                theiler_window=0 if theiler is None else theiler, workers=workers)
-            sq[i] += _fit_errors(s, q_t[sl], db_t[pos], weight, cols, order, ridge,
-                                 fallback).sum()
-    return np.sqrt(sq / q_t.size), exact
-
-
-def _candidate_lists(s, m, members, needed, n_list, theiler, workers):
-    """``n_list`` nearest first-window neighbours (times, -1 = none) of every needed time.
-
-    Neighbours come from ``members`` (times); with ``theiler``, members within
-    ``theiler`` samples of the needed time are dropped (from ``n_list`` plus a
-    margin of nearest, so fewer may remain).  ``ldist`` holds their
-    squared first-window distances (float32) and ``rk2`` the squared distance
-    of the last neighbour queried: every member outside a list is at least that
-    far away.
-    """
-    first = np.arange(m)
-    tree = cKDTree(_gather(s, members, first))
-    # query a margin for the Theiler-excluded times; on long records the temporal
-    # neighbours are rarely among the nearest, so the margin is capped (a list may then
-    # hold fewer than n_list valid entries, and the bound stays valid)
-    excl = 0 if theiler is None else min(2 * theiler + 1, max(n_list // 2, 1))
-    kq = min(members.size, n_list + excl)
-    lists = np.full((needed.size, n_list), -1, dtype=np.int32)
-    ldist = np.full((needed.size, n_list), np.inf, dtype=np.float32)
-    rk2 = np.empty(needed.size)
-    for sl in _chunks(needed.size, 3 * kq):
-        d, pos = tree.query(_gather(s, needed[sl], first), k=kq, workers=workers)
-        d, pos = d.reshape(-1, kq), pos.reshape(-1, kq)
-        rk2[sl] = d[:, -1] ** 2 if kq < members.size else np.inf
-        times = members[pos]
-        keep = np.ones(times.shape, dtype=bool)
-        if theiler is not None:
-            keep = np.abs(times - needed[sl, None]) > theiler
-        order = np.argsort(~keep, axis=1, kind="stable")[:, :n_list]
-        kept = np.take_along_axis(keep, order, 1)
-        width = order.shape[1]
-        lists[sl, :width] = np.where(kept, np.take_along_axis(times, order, 1), -1)
-        ldist[sl, :width] = np.where(kept, np.take_along_axis(d, order, 1) ** 2, np.inf)
-    return lists, ldist, rk2
-
-
-def _errors_candidates(s, m, taus, db_t, q_t, *, k, order, ridge, radius, theiler, workers,
-                       n_candidates, max_start=None):
-    k = min(k, db_t.size)
-    starts = np.array([_second_window_start(m, int(tau)) for tau in taus])
-    reach_back = int(starts.max()) if max_start is None else int(max_start)
-    members = np.arange(max(m - 1, int(db_t.min()) - reach_back), int(db_t.max()) + 1)
-    needed = np.unique(np.concatenate([q_t, (q_t[:, None] - np.unique(starts)[None, :]).ravel()]))
-    u_min = int(needed[0])
-    row_of = np.full(int(needed[-1]) - u_min + 1, -1, dtype=np.int64)
-    row_of[needed - u_min] = np.arange(needed.size)
-    lists, ldist, rk2 = _candidate_lists(s, m, members, needed, n_candidates, theiler, workers)
-    is_db = np.zeros(s.size, dtype=np.bool_)
-    is_db[db_t] = True
-    fallback = float(s[db_t + 1].mean())
-    width = k if radius is None else 2 * n_candidates
-    nb_t = np.empty((q_t.size, width), dtype=np.int64)
-    weight = np.empty((q_t.size, width), dtype=np.bool_)
-    reach = np.empty(q_t.size)
-    bound = np.empty(q_t.size)
-    radius2 = 0.0 if radius is None else float(radius) ** 2
-    sq = np.zeros(len(taus))
-    exact = np.zeros(len(taus))
-    for i, tau in enumerate(taus):
-        cols = two_window_columns(m, tau)
-        _union_rerank(s, q_t, lists, ldist, rk2, row_of, u_min, int(starts[i]), m, k, radius2,
-                      is_db, nb_t, weight, reach, bound)
-        exact[i] = np.mean(reach <= bound)
-        for sl in _chunks(q_t.size, width * 2 * m):
-            sq[i] += _fit_errors(s, q_t[sl], nb_t[sl], weight[sl], cols, order, ridge,
-                                 fallback).sum()
-    return np.sqrt(sq / q_t.size), exact
-
-
-def _errors_job(s, m, taus, db_t, q_t, opts):
-    if opts["search"] == "exact":
-        return _errors_exact(s, m, taus, db_t, q_t, k=opts["k"], order=opts["order"],
-                             ridge=opts["ridge"], radius=opts["radius"],
-                             theiler=opts["theiler"], workers=1)
-    return _errors_candidates(s, m, taus, db_t, q_t, k=opts["k"], order=opts["order"],
-                              ridge=opts["ridge"], radius=opts["radius"],
-                              theiler=opts["theiler"], workers=1,
-                              n_candidates=opts["n_candidates"],
-                              max_start=_second_window_start(m, int(opts["max_tau"])))
-
-
-# ----------------------------------------------------------------------------- equal neighbourhoods
-def _mean_kth_distance(s, m, tau, db_t, k, theiler, rng, n_probe=1000):
-    cols = two_window_columns(m, tau)
-    V = _gather(s, db_t, cols)
-    probes = rng.choice(db_t.size, size=min(n_probe, db_t.size), replace=False)
-    pos, weight = tree_neighbours(cKDTree(V), V[probes], k, query_ids=db_t[probes],
-                                  fit_ids=db_t, theiler_window=theiler)
-    dist = np.linalg.norm(V[pos] - V[probes][:, None, :], axis=2)
-    return float(np.where(weight, dist, 0.0).max(axis=1).mean())
-
-
-def _segment_length(s, m, tau, db_t, k, theiler, d_ref, rng, n_min):
-    """Length of the (last) database segment whose mean k-th distance is d_ref."""
-    n_hi, d_hi = db_t.size, _mean_kth_distance(s, m, tau, db_t, k, theiler, rng)
-    if d_hi >= d_ref:
-        return n_hi
-    while True:
-        n_lo = max(n_min, n_hi // 2)
-        d_lo = _mean_kth_distance(s, m, tau, db_t[-n_lo:], k, theiler, rng)
-        if d_lo >= d_ref or n_lo == n_min:
-            break
-        n_hi, d_hi = n_lo, d_lo
-    if d_lo < d_ref or d_lo == d_hi:
-        return n_lo
-    frac = (np.log(d_ref) - np.log(d_hi)) / (np.log(d_lo) - np.log(d_hi))
-    return round(float(np.exp(np.log(n_hi) + frac * (np.log(n_lo) - np.log(n_hi)))))
-
-
-# ----------------------------------------------------------------------------- driver
-def scan_series(s, ms, taus, splits, *, k, order, ridge, radius, theiler, n_queries,
-                equal_neighbourhood, search, n_candidates, random_state, n_jobs, verbose):
-    """Forecast errors (n_splits, n_m, n_tau) (not normalised) plus metadata.
-
-    ``splits`` is a list of ``(db_t, test_t)``; ``test_t=None`` means the
-    in-sample, Theiler-excluded error over the database itself.
-    """
-    if search not in ("candidates", "exact"):
-        raise ValueError(f"search must be 'candidates' or 'exact', got {search!r}.")
-    if equal_neighbourhood not in (False, True, "segment", "radius"):
+    st = Standardiser.fit(s)
+    if st.relative_spread < MIN_RELATIVE_SPREAD:
         raise ValueError(
-            "equal_neighbourhood must be False, True/'segment' (shorter series for smaller m) "
-            f"or 'radius' (one neighbourhood radius for every m), got {equal_neighbourhood!r}."
+            f"{name} is constant up to rounding (relative spread {st.relative_spread:.1e}); "
+            "a delay cannot be read from it - check the recording channel or remove the offset."
         )
-    rng = check_random_state(random_state)
-    k = check_positive_int(k, name="n_neighbors")
-    n_candidates = (max(2 * k, 32) if n_candidates is None
-                    else check_positive_int(n_candidates, name="n_candidates"))
-    # one job per (split, m): the candidate lists of an m are built once per job, so
-    # blocks of tau are only split off when there are fewer (split, m) pairs than workers
-    n_workers = max(1, effective_n_jobs(n_jobs))
-    n_chunks = max(1, min(len(taus), -(-n_workers // (len(splits) * len(ms)))))
-    tau_chunks = [c for c in np.array_split(np.asarray(taus), n_chunks) if c.size]
-    jobs, meta = [], {"segment_length": {}, "n_queries": {}, "radius": radius}
-    for split, (db_t, test_t) in enumerate(splits):
-        w = theiler if test_t is None else None
-        seg = {int(m): db_t.size for m in ms}
-        rad = radius
-        if equal_neighbourhood and len(ms) > 1:
-            tau_ref = int(np.median(taus))
-            n_min = min(db_t.size, max(4 * k + 2 * (w or 0) + 2, 50))
-            d_ref = _mean_kth_distance(s, int(ms[-1]), tau_ref, db_t, k, w or 0, rng)
-            if equal_neighbourhood == "radius":
-                rad = d_ref
-                meta["radius"] = d_ref
-            else:
-                for m in ms[:-1]:
-                    seg[int(m)] = _segment_length(s, int(m), tau_ref, db_t, k, w or 0, d_ref,
-                                                  rng, n_min)
-        shared = None  # one query set for every m unless the database differs per m
-        for m in ms[::-1]:  # costliest (largest m) first: better load balance
-            db_m = db_t[-seg[int(m)]:]
-            pool = db_m if test_t is None else test_t
-            if n_queries is None or n_queries >= pool.size:
-                q_t = pool
-            elif shared is not None and db_m.size == db_t.size:
-                q_t = shared
-            else:
-                q_t = np.sort(rng.choice(pool, size=n_queries, replace=False))
-                if db_m.size == db_t.size:
-                    shared = q_t
-            meta["segment_length"][int(m)] = int(db_m.size)
-            meta["n_queries"][int(m)] = int(q_t.size)
-            opts = {"k": k, "order": order, "ridge": ridge, "radius": rad, "theiler": w,
-                    "search": search, "n_candidates": n_candidates, "max_tau": int(taus[-1])}
-            for chunk in tau_chunks:
-                jobs.append(((split, int(m), chunk), delayed(_errors_job)(s, int(m), chunk,
-                                                                          db_m, q_t, opts)))
-    results = Parallel(n_jobs=n_jobs, verbose=verbose)(job for _, job in jobs)
-    m_pos = {int(m): j for j, m in enumerate(ms)}
-    tau_pos = {int(t): j for j, t in enumerate(taus)}
-    err = np.empty((len(splits), len(ms), len(taus)))
-    exact = np.empty_like(err)
-    for ((split, m, chunk), _), (e, x) in zip(jobs, results):
-        cols = [tau_pos[int(t)] for t in chunk]
-        err[split, m_pos[m], cols] = e
-        exact[split, m_pos[m], cols] = x
-    meta["exact_fraction"] = exact
-    return err, meta
+    z = st.forward(s)
+    return z, float(z.std()), st.scale
 
 
+def _frame(values, ms, taus):
+    return pd.DataFrame(np.asarray(values).T, index=pd.Index(taus, name="tau"),
+                        columns=pd.Index(ms, name="m"))
+
+
+def _combine(res):
+    """Mean over splits of the errors and the standard error of that mean."""
+    n_split = res.error.shape[0]
+    return res.error.mean(axis=0), np.sqrt(np.sum(res.se ** 2, axis=0)) / n_split
+
+
+# ----------------------------------------------------------------------------- forecast_error_curve
 def forecast_error_curve(series, m=(2, 3, 4, 5), tau=range(1, 101), *, n_neighbors=30, order=1,
                          ridge=1e-3, radius=None, n_queries=None, equal_neighbourhood=False,
                          theiler_window="auto", search="candidates", n_candidates=None,
-                         random_state=None, n_jobs=None, verbose=0):
+                         refine=True, progress=False, random_state=None, n_jobs=None, verbose=0):
     """Normalised one-step forecast error sigma_m(tau) of local linear two-window models.
 
     For every ``(m, tau)`` and every query time ``t`` the local linear map is
@@ -411,12 +118,12 @@ def forecast_error_curve(series, m=(2, 3, 4, 5), tau=range(1, 101), *, n_neighbo
     of the same series, excluding ``|j - t| <= theiler_window``, and predicts
     ``s[t+1]``; sigma is the rms error divided by the series' standard
     deviation (Buenner et al., Sec. III).  Its dip locates the delay
-    (:func:`locate_dips`).
+    (:func:`locate_dips`, which reads the standard errors in ``attrs["se"]``).
 
     Parameters
     ----------
     series : array-like of shape (n_samples,)
-        Scalar series sampled at step 1.
+        Scalar series sampled at step 1 (any scale: it is rescaled exactly).
     m : int or sequence of int, default=(2, 3, 4, 5)
         Window lengths (an int ``v`` means ``1..v``).
     tau : int or sequence of int, default=range(1, 101)
@@ -428,10 +135,10 @@ def forecast_error_curve(series, m=(2, 3, 4, 5), tau=range(1, 101), *, n_neighbo
     ridge : float, default=1e-3
         Relative ridge of the local fits (see :class:`LocalLinearDelayMap`).
     radius : float, default=None
-        Radius neighbourhoods with k-NN fallback instead of k-NN.
+        Radius neighbourhoods (units of ``series``) with k-NN fallback instead of k-NN.
     n_queries : int, default=None
-        Forecast only this many random times (the database stays complete);
-        None uses every time.
+        Queries of the coarse pass: forecast this many random times per cell
+        (the database stays complete); None uses every time (no coarse cells).
     equal_neighbourhood : {False, True, "segment", "radius"}, default=False
         The paper's equal neighbourhood size for every ``m``: ``True`` /
         ``"segment"`` uses for each smaller ``m`` the most recent segment of
@@ -441,24 +148,43 @@ def forecast_error_curve(series, m=(2, 3, 4, 5), tau=range(1, 101), *, n_neighbo
     theiler_window : int or "auto", default="auto"
         Temporal exclusion of neighbours; "auto" is the 1/e decorrelation time.
     search : {"candidates", "exact"}, default="candidates"
-        Neighbour search (see module docs); "exact" rebuilds a k-d tree per
-        ``(m, tau)``.
+        Neighbour search (see :mod:`skdelay._scan`); "exact" rebuilds a k-d
+        tree per ``(m, tau)``.
     n_candidates : int, default=None
-        Candidates per query for ``search="candidates"`` (default ``max(8k, 64)``).
+        Candidates per window and query for ``search="candidates"`` (default
+        ``max(8 k, 64)``, fewer for records so long that the lists of one ``m``
+        would exceed 256 MB, see :func:`skdelay._scan.default_n_candidates`).
+    refine : bool, default=True
+        With ``n_queries``: recompute the taus around each dip with 4x more
+        queries per round (up to all) until every dip centre's standard error
+        is below 0.2 samples.  False keeps the coarse pass (full precision:
+        ``n_queries=None``).
+    progress : bool, default=False
+        Show a tqdm progress bar (with ETA) over the scan's tasks.
     random_state : int, RandomState or Generator, default=None
         Seeds the query subset and the neighbourhood-size probes.
     n_jobs : int, default=None
-        joblib workers (one job per ``m`` and block of ``tau``).
+        joblib workers (tasks: one ``m`` and a chunk of ``tau``).
     verbose : int, default=0
         joblib verbosity.
 
     Returns
     -------
     pandas.DataFrame
-        Index ``tau``, one column per ``m``.  ``attrs`` holds
-        ``segment_length`` and ``n_queries`` (per ``m``), ``theiler_window``,
-        ``radius`` and ``exact_fraction`` (fraction of queries whose
-        neighbours are provably the exact k-NN, per ``m``, mean over ``tau``).
+        Index ``tau``, one column per ``m``.  ``attrs`` holds ``se``
+        (standard errors of the cells, same shape), ``coarse`` (bool, cells
+        left at the coarse query subset), ``queries`` (queries per cell),
+        ``n_queries`` (coarse queries per ``m``), ``segment_length`` (per
+        ``m``), ``theiler_window``, ``radius`` and ``exact_fraction``
+        (fraction of queries whose neighbours are provably the exact k-NN,
+        per ``m``, mean over ``tau``).
+
+    Raises
+    ------
+    ValueError
+        Bad options (negative ridge, radius <= 0, order not 0/1, n_candidates <
+        n_neighbors, a Theiler window leaving no neighbours), a series too
+        short for the grid, or a constant series.
 
     Examples
     --------
@@ -473,8 +199,11 @@ def forecast_error_curve(series, m=(2, 3, 4, 5), tau=range(1, 101), *, n_neighbo
     >>> sigma = forecast_error_curve(s, m=(2,), tau=range(1, 15), random_state=0)
     >>> int(sigma[2].idxmin())
     7
+    >>> bool(sigma.attrs["se"].loc[7, 2] < 0.1 * sigma.loc[7, 2])
+    True
     """
     s = check_series(series, name="series")
+    z, z_std, scale = rescaled(s)
     ms, taus = as_grid(m, "m"), as_grid(tau, "tau")
     n_lags = required_lags(int(ms[-1]), int(taus[-1]))
     k = check_positive_int(n_neighbors, name="n_neighbors")
@@ -484,24 +213,33 @@ def forecast_error_curve(series, m=(2, 3, 4, 5), tau=range(1, 101), *, n_neighbo
             f"{n_lags} lags plus at least n_neighbors + 2 = {k + 2} rows; use a longer "
             "series or a smaller tau/m range."
         )
-    if n_queries is not None:
-        n_queries = check_positive_int(n_queries, name="n_queries")
-    w = theiler_from(s, theiler_window)
+    w = theiler_from(z, theiler_window)
+    opts = ScanOptions(k=k, order=order, ridge=ridge,
+                       radius=None if radius is None else _scaled_radius(radius, scale),
+                       theiler=w, search=search, n_candidates=n_candidates,
+                       neighbourhood=equal_neighbourhood, n_queries=n_queries, refine=refine)
     db_t = np.arange(n_lags - 1, s.size - 1)
-    err, meta = scan_series(s, ms, taus, [(db_t, None)], k=k, order=order, ridge=ridge,
-                            radius=radius, theiler=w, n_queries=n_queries,
-                            equal_neighbourhood=equal_neighbourhood, search=search,
-                            n_candidates=n_candidates, random_state=random_state,
-                            n_jobs=n_jobs, verbose=verbose)
-    out = pd.DataFrame(err[0].T / s.std(), index=pd.Index(taus, name="tau"),
-                       columns=pd.Index(ms, name="m"))
+    opts.check_rows(db_t.size)
+    res = scan_series(z, ms, taus, [(db_t, None)], opts, random_state=random_state,
+                      n_jobs=n_jobs, verbose=verbose, progress=progress)
+    err, se = _combine(res)
+    out = _frame(err / z_std, ms, taus)
     out.attrs.update(
-        segment_length=meta["segment_length"], n_queries=meta["n_queries"], theiler_window=w,
-        radius=meta["radius"],
-        exact_fraction={int(mm): float(meta["exact_fraction"][0, j].mean())
-                        for j, mm in enumerate(ms)},
+        se=_frame(se / z_std, ms, taus), coarse=_frame(res.coarse, ms, taus),
+        queries=_frame(res.n_queries[0], ms, taus),
+        n_queries={int(mm): int(res.n_queries[0, j].min()) for j, mm in enumerate(ms)},
+        segment_length=res.segment_length, theiler_window=w,
+        radius=None if res.radius is None else float(res.radius) * scale,
+        exact_fraction={int(mm): float(res.exact[0, j].mean()) for j, mm in enumerate(ms)},
     )
     return out
+
+
+def _scaled_radius(radius, scale):
+    if isinstance(radius, numbers.Real) and not isinstance(radius, (bool, np.bool_)) \
+            and radius > 0 and np.isfinite(radius):
+        return float(radius) / scale
+    return radius  # ScanOptions says what is wrong with it
 
 
 # ----------------------------------------------------------------------------- DelaySelectorCV
@@ -514,22 +252,35 @@ def _columns_job(Xc, y, train, queries, estimator, theiler):
     else:
         model.fit(Xc[train], y[train])
         pred = model.predict(Xc[queries])
-    return float(np.sqrt(np.mean((pred - y[queries]) ** 2)))
+    e2 = (pred - y[queries]) ** 2
+    n_b = min(N_BATCHES, e2.size)
+    sq = np.bincount((np.arange(e2.size) * n_b) // e2.size, e2, minlength=n_b)[None, :]
+    rms, se = cell_stats(sq, e2.size)
+    return float(rms[0]), float(se[0])
+
+
+def _no_dip_rows(ms, reason):
+    rows = {int(mm): {"delay": np.nan, "half_width": np.nan, "tau_min": -1,
+                      "min_error": np.nan, "centre_se": np.nan, "delay_error": np.nan,
+                      "tau_best": -1, "depth": np.nan, "z": np.nan, "threshold": np.nan,
+                      "significant": False, "reason": reason} for mm in ms}
+    out = pd.DataFrame.from_dict(rows, orient="index")
+    out.index.name = "m"
+    return out
 
 
 class DelaySelectorCV(RegressorMixin, BaseEstimator):
     """Find the feedback delay and window length by scanning sigma_m(tau).
 
     ``fit(X, y)`` takes the lag matrix and next values from
-    :func:`~skdelay.lagged_windows` (``n_lags >= required_lags(max m, max
-    tau)``), computes the normalised one-step forecast error of
-    ``Pipeline(TwoWindowEmbedding(m, tau), estimator)`` for every ``(m, tau)``
-    of the grid, and locates the dip of each ``sigma_m(tau)``
-    (:func:`locate_dips`).  The scan never materialises ``X[train]``: the
-    1-D series is recovered from ``X`` (first row + first column, checked
-    against all of ``X``) and workers receive the series and row indices; if
-    ``X`` is not a consistent lag matrix, each candidate gets only its
-    ``(n, 2m)`` columns.
+    :func:`~skdelay.lagged_windows`, computes the normalised one-step forecast
+    error of ``Pipeline(TwoWindowEmbedding(m, tau), estimator)`` for every
+    ``(m, tau)`` of the grid with its standard error, and locates and tests
+    the dip of each ``sigma_m(tau)`` (:func:`locate_dips`).  The scan never
+    materialises ``X[train]``: the 1-D series is recovered from ``X`` (first
+    row + first column, checked against all of ``X``) and workers receive the
+    series and row indices; if ``X`` is not a consistent lag matrix, each
+    candidate gets only its ``(n, 2m)`` columns.
 
     With ``cv=None`` the error is the paper's: in-sample, each forecast made
     without the neighbours within ``theiler_window`` of the query.  With a
@@ -539,17 +290,22 @@ class DelaySelectorCV(RegressorMixin, BaseEstimator):
     Parameters
     ----------
     estimator : LocalLinearDelayMap or regressor, default=None
-        Model fitted on the two-window vectors (default
-        ``LocalLinearDelayMap()``).  Other regressors need a ``cv`` splitter.
-    m : int or sequence of int, default=(2, 3, 4, 5)
-        Window lengths (an int ``v`` means ``1..v``).
-    tau : int or sequence of int, default=100
-        Delays in samples (an int ``v`` means ``1..v``).
+        Model fitted on the two-window vectors.  None: ``LocalLinearDelayMap``
+        with 30 neighbours, fewer (down to 3) when ``X`` has too few rows.
+        Other regressors need a ``cv`` splitter.
+    m : int or sequence of int, default=None
+        Window lengths (an int ``v`` means ``1..v``).  None: those of
+        ``(2, 3, 4, 5)`` that the lag columns of ``X`` can hold.
+    tau : int or sequence of int, default=None
+        Delays in samples (an int ``v`` means ``1..v``).  None: every delay the
+        lag columns hold for the largest ``m``, ``1..n_lags - max(m) // 2``
+        (``required_lags(m, tau) <= n_lags``), so ``lagged_windows(s, L)``
+        scans delays up to about ``L``.
     cv : None, int, or CV splitter, default=None
         None: in-sample Theiler-excluded error; otherwise the test error.
     n_queries : int, default=None
-        Forecast only this many random rows per fold (the neighbour database
-        stays complete); None uses all.
+        Forecast this many random rows per fold in the coarse pass (the
+        neighbour database stays complete); None uses all.
     theiler_window : int or "auto", default="auto"
         Temporal exclusion for ``cv=None`` ("auto": the 1/e decorrelation time).
     equal_neighbourhood : {False, True, "segment", "radius"}, default=False
@@ -558,9 +314,13 @@ class DelaySelectorCV(RegressorMixin, BaseEstimator):
     search : {"candidates", "exact"}, default="candidates"
         Neighbour search of the scan (see :func:`forecast_error_curve`).
     n_candidates : int, default=None
-        Candidates per query for ``search="candidates"``.
+        Candidates per window and query for ``search="candidates"``.
+    refine : bool, default=True
+        Refine the dips with more queries (see :func:`forecast_error_curve`).
     dip_level : float, default=1/3
         Fraction of the dip depth delimiting the dip (:func:`locate_dips`).
+    progress : bool, default=False
+        tqdm progress bar over the scan's tasks.
     random_state : int, RandomState or Generator, default=None
         Seeds the query subsets.
     n_jobs : int, default=None
@@ -572,16 +332,21 @@ class DelaySelectorCV(RegressorMixin, BaseEstimator):
     ----------
     forecast_error_ : pandas.DataFrame
         sigma_m(tau) normalised by the series' standard deviation (mean over
-        folds); index ``tau``, one column per ``m``.
+        folds); index ``tau``, one column per ``m``; ``attrs["se"]`` holds the
+        standard errors of the cells.
     delay_by_m_ : pandas.DataFrame
         Dip of every ``m`` (:func:`locate_dips`): ``delay``, ``half_width``,
-        ``tau_min``, ``min_error``.
+        ``centre_se``, ``delay_error``, ``tau_best``, ``z``, ``threshold``,
+        ``significant``, ``reason``, ...
     delay_ : float
-        Dip centre (samples) of the best ``m`` (lowest minimum error).
+        Dip centre (samples) of the best ``m``: among the ``m`` with a
+        significant dip, the one with the lowest minimum error.  NaN when no
+        ``m`` has a significant dip (a :class:`NoDipWarning` says why).
     delay_error_ : float
-        Half-width of that dip.
+        Error bar of ``delay_`` (half-width and centre standard error), or NaN.
     best_params_ : dict
-        ``{"m": best m, "tau": grid delay nearest to delay_}``.
+        ``{"m": best m, "tau": its tau_best}``; without a significant dip the
+        grid cell of lowest error (so ``best_estimator_`` always exists).
     best_index_ : int
         Index of ``best_params_`` in ``cv_results_["params"]``.
     best_score_ : float
@@ -616,13 +381,14 @@ class DelaySelectorCV(RegressorMixin, BaseEstimator):
     >>> sel = DelaySelectorCV(m=(2, 3), tau=14, random_state=0).fit(X, y)
     >>> sel.best_params_
     {'m': 2, 'tau': 7}
-    >>> bool(abs(sel.delay_ - 7) <= 1)
-    True
+    >>> bool(abs(sel.delay_ - 7) <= 1), bool(sel.delay_by_m_.loc[2, "significant"])
+    (True, True)
     """
 
-    def __init__(self, estimator=None, *, m=(2, 3, 4, 5), tau=100, cv=None, n_queries=None,
+    def __init__(self, estimator=None, *, m=None, tau=None, cv=None, n_queries=None,
                  theiler_window="auto", equal_neighbourhood=False, search="candidates",
-                 n_candidates=None, dip_level=1 / 3, random_state=None, n_jobs=None, verbose=0):
+                 n_candidates=None, refine=True, dip_level=1 / 3, progress=False,
+                 random_state=None, n_jobs=None, verbose=0):
         self.estimator = estimator
         self.m = m
         self.tau = tau
@@ -632,7 +398,9 @@ class DelaySelectorCV(RegressorMixin, BaseEstimator):
         self.equal_neighbourhood = equal_neighbourhood
         self.search = search
         self.n_candidates = n_candidates
+        self.refine = refine
         self.dip_level = dip_level
+        self.progress = progress
         self.random_state = random_state
         self.n_jobs = n_jobs
         self.verbose = verbose
@@ -647,6 +415,61 @@ class DelaySelectorCV(RegressorMixin, BaseEstimator):
             cv = check_cv(cv, y)
         return [(np.asarray(tr), np.asarray(te)) for tr, te in cv.split(X, y)]
 
+    def _grid(self, n_lags):
+        """The (m, tau) grid, the defaults adapted to the lag columns of X."""
+        if self.m is None:
+            ms = np.array([mm for mm in DEFAULT_M if mm <= n_lags], dtype=np.int64)
+            if ms.size == 0:
+                raise ValueError(
+                    f"X has {n_lags} feature(s) (lag columns) but the smallest default window "
+                    f"m={DEFAULT_M[0]} needs {DEFAULT_M[0]}; build X with "
+                    "lagged_windows(series, n_lags) for n_lags > the delays to scan."
+                )
+        else:
+            ms = as_grid(self.m, "m")
+        if self.tau is None:
+            top = n_lags - int(ms[-1]) // 2
+            if n_lags < int(ms[-1]) or top < 1:
+                raise ValueError(
+                    f"X has {n_lags} feature(s) (lag columns) but m={int(ms[-1])} needs at "
+                    f"least {required_lags(int(ms[-1]), 1)}; build X with "
+                    "lagged_windows(series, n_lags) for n_lags > the delays to scan."
+                )
+            taus = np.arange(1, top + 1, dtype=np.int64)
+        else:
+            taus = as_grid(self.tau, "tau")
+        need = required_lags(int(ms[-1]), int(taus[-1]))
+        if n_lags < need:
+            raise ValueError(
+                f"X has {n_lags} feature(s) (lag columns) but m={int(ms[-1])}, "
+                f"tau={int(taus[-1])} needs {need}; build X with lagged_windows(series, "
+                f"n_lags={need}) or scan smaller m/tau."
+            )
+        return ms, taus
+
+    def _model(self, n_rows, theiler, splits):
+        """The estimator; the default one shrinks its neighbourhood to short inputs."""
+        fewest = min((tr.size for tr, _ in splits), default=n_rows)
+        free = fewest - (2 * theiler + 1 if self.cv is None else 0)
+        if self.estimator is not None:
+            est = self.estimator
+            k = getattr(est, "n_neighbors", None)
+            if isinstance(est, LocalLinearDelayMap) and isinstance(k, numbers.Integral) \
+                    and k > free:
+                raise ValueError(
+                    f"n_neighbors={k} but X has {n_rows} rows, of which {max(free, 0)} can be "
+                    f"neighbours of a query (theiler_window={theiler}, smallest training fold "
+                    f"{fewest} rows); use n_neighbors <= {max(free, 1)} or a longer series."
+                )
+            return est
+        if free < MIN_NEIGHBOURS:
+            raise ValueError(
+                f"X has {n_rows} rows, too few for a delay scan: at most {max(free, 0)} can be "
+                f"neighbours of a query (theiler_window={theiler}), and a local model needs "
+                f"at least {MIN_NEIGHBOURS}; use a longer series (hundreds of rows or more)."
+            )
+        return LocalLinearDelayMap(n_neighbors=min(DEFAULT_NEIGHBOURS, free))
+
     def fit(self, X, y):
         """Scan the ``(m, tau)`` grid and refit the best pipeline.
 
@@ -660,44 +483,54 @@ class DelaySelectorCV(RegressorMixin, BaseEstimator):
         Returns
         -------
         self : DelaySelectorCV
+
+        Warns
+        -----
+        NoDipWarning
+            When no ``m`` has a significant dip (``delay_`` is then NaN).
         """
         X, y = validate_data(self, X, y, y_numeric=True, dtype=np.float64)
         y = np.asarray(y, dtype=np.float64)
-        est = LocalLinearDelayMap() if self.estimator is None else self.estimator
-        ms, taus = as_grid(self.m, "m"), as_grid(self.tau, "tau")
         n, n_lags = X.shape
-        need = required_lags(int(ms[-1]), int(taus[-1]))
-        if n_lags < need:
-            raise ValueError(
-                f"X has {n_lags} feature(s) (lag columns) but m={int(ms[-1])}, "
-                f"tau={int(taus[-1])} needs {need}; build X with lagged_windows(series, "
-                f"n_lags={need}) or scan smaller m/tau."
-            )
+        ms, taus = self._grid(n_lags)
         if n < 3:
-            raise ValueError(f"X has {n} sample(s) but DelaySelectorCV needs at least 3 rows.")
+            raise ValueError(f"X has {n} sample(s) but DelaySelectorCV needs at least 3 rows; "
+                             "use a longer series.")
+        if np.ptp(X) == 0:
+            raise ValueError(f"X is constant (every value equals {float(X.flat[0])!r}); a delay "
+                             "cannot be read from a constant signal - check the recording channel.")
         if self.n_queries is not None:
             check_positive_int(self.n_queries, name="n_queries")
-        local = isinstance(est, LocalLinearDelayMap)
-        if self.cv is None and not local:
+        if self.estimator is not None and self.cv is None \
+                and not isinstance(self.estimator, LocalLinearDelayMap):
             raise ValueError(
                 "cv=None (in-sample, Theiler-excluded error) needs a LocalLinearDelayMap "
-                f"estimator, got {type(est).__name__}; pass cv=5 (TimeSeriesSplit) or a splitter."
+                f"estimator, got {type(self.estimator).__name__}; pass cv=5 (TimeSeriesSplit) "
+                "or a splitter."
             )
         splits = self._splits(X, y)
+        local = self.estimator is None or isinstance(self.estimator, LocalLinearDelayMap)
         s = series_from_lagged(X, y) if local else None
-        if s is not None and np.ptp(s) > 0:
-            w = theiler_from(s, self.theiler_window)
-            err, meta = scan_series(
-                s, ms, taus, [(tr + n_lags - 1, None if te is None else te + n_lags - 1)
-                              for tr, te in splits],
-                k=est.n_neighbors, order=est.order, ridge=est.ridge, radius=est.radius,
-                theiler=w, n_queries=self.n_queries,
-                equal_neighbourhood=self.equal_neighbourhood, search=self.search,
-                n_candidates=self.n_candidates, random_state=self.random_state,
-                n_jobs=self.n_jobs, verbose=self.verbose)
-            scale = s.std()
-            attrs = {"segment_length": meta["segment_length"], "n_queries": meta["n_queries"],
-                     "theiler_window": w}
+        if s is not None:
+            z, scale, unit = rescaled(s, name="the series behind X")
+            w = theiler_from(z, self.theiler_window) if self.cv is None else 0
+            est = self._model(n, w, splits)
+            opts = ScanOptions(
+                k=est.n_neighbors, order=est.order, ridge=est.ridge,
+                radius=None if est.radius is None else _scaled_radius(est.radius, unit),
+                theiler=w, search=self.search, n_candidates=self.n_candidates,
+                neighbourhood=self.equal_neighbourhood, n_queries=self.n_queries,
+                refine=self.refine)
+            res = scan_series(
+                z, ms, taus, [(tr + n_lags - 1, None if te is None else te + n_lags - 1)
+                              for tr, te in splits], opts,
+                random_state=self.random_state, n_jobs=self.n_jobs, verbose=self.verbose,
+                progress=self.progress)
+            err, se = res.error, res.se
+            attrs = {"segment_length": res.segment_length,
+                     "queries": _frame(res.n_queries[0], ms, taus),
+                     "coarse": _frame(res.coarse, ms, taus),
+                     "theiler_window": w if self.cv is None else None}
         else:
             if self.equal_neighbourhood:
                 raise ValueError(
@@ -706,11 +539,12 @@ class DelaySelectorCV(RegressorMixin, BaseEstimator):
                 )
             w = (0 if np.ptp(y) == 0 else theiler_from(y, self.theiler_window)) \
                 if self.cv is None else None
-            err = self._scan_columns(X, y, ms, taus, splits, est, w)
+            est = self._model(n, w or 0, splits)
+            err, se = self._scan_columns(X, y, ms, taus, splits, est, w)
             scale = y.std()
             attrs = {"theiler_window": w}
-        err = err / (scale if scale > 0 else 1.0)
-        self._store(err, ms, taus, attrs)
+        scale = scale if scale > 0 else 1.0
+        self._store(err / scale, se / scale, ms, taus, attrs)
         best = self.best_params_
         self.best_estimator_ = Pipeline([
             ("embedding", TwoWindowEmbedding(m=best["m"], tau=best["tau"])),
@@ -728,17 +562,17 @@ class DelaySelectorCV(RegressorMixin, BaseEstimator):
             plans.append((tr, pool))
         jobs = (delayed(_columns_job)(X[:, two_window_columns(int(m), int(t))], y, tr, q, est, w)
                 for tr, q in plans for m in ms for t in taus)
-        res = Parallel(n_jobs=self.n_jobs, verbose=self.verbose)(jobs)
-        return np.asarray(res).reshape(len(splits), len(ms), len(taus))
+        res = np.asarray(Parallel(n_jobs=self.n_jobs, verbose=self.verbose)(jobs))
+        shape = (len(splits), len(ms), len(taus))
+        return res[:, 0].reshape(shape), res[:, 1].reshape(shape)
 
-    def _store(self, err, ms, taus, attrs):
+    def _store(self, err, se, ms, taus, attrs):
         n_splits = err.shape[0]
         self.n_splits_ = n_splits
-        fe = pd.DataFrame(err.mean(axis=0).T, index=pd.Index(taus, name="tau"),
-                          columns=pd.Index(ms, name="m"))
+        fe = _frame(err.mean(axis=0), ms, taus)
         fe.attrs.update(attrs)
+        fe.attrs["se"] = _frame(np.sqrt(np.sum(se ** 2, axis=0)) / n_splits, ms, taus)
         self.forecast_error_ = fe
-        self.delay_by_m_ = locate_dips(fe, level=self.dip_level)
         scores = -err.reshape(n_splits, -1)  # candidate order: m outer, tau inner
         params = [{"m": int(mm), "tau": int(tt)} for mm in ms for tt in taus]
         results = {
@@ -753,11 +587,33 @@ class DelaySelectorCV(RegressorMixin, BaseEstimator):
         results["rank_test_score"] = rankdata(-results["mean_test_score"],
                                               method="min").astype(np.int32)
         self.cv_results_ = results
-        best_m = int(fe.min(axis=0).idxmin())
-        self.delay_ = float(self.delay_by_m_.loc[best_m, "delay"])
-        self.delay_error_ = float(self.delay_by_m_.loc[best_m, "half_width"])
-        best_tau = int(taus[np.argmin(np.abs(taus - self.delay_))])
-        self.best_params_ = {"m": best_m, "tau": best_tau}
+        if len(taus) < 3:
+            dips = _no_dip_rows(ms, f"only {len(taus)} delay(s) scanned; a dip needs at least 3")
+        elif not np.all(np.isfinite(fe.to_numpy())):
+            dips = _no_dip_rows(ms, "the forecast error is not finite everywhere")
+        else:
+            dips = locate_dips(fe, level=self.dip_level)
+        self.delay_by_m_ = dips
+        good = dips[dips["significant"]]
+        if len(good):
+            best_m = int(good["min_error"].idxmin())
+            row = dips.loc[best_m]
+            self.delay_ = float(row["delay"])
+            self.delay_error_ = float(row["delay_error"])
+            self.best_params_ = {"m": best_m, "tau": int(row["tau_best"])}
+        else:
+            self.delay_ = float("nan")
+            self.delay_error_ = float("nan")
+            j, i = np.unravel_index(np.argmin(fe.to_numpy().T), (len(ms), len(taus)))
+            self.best_params_ = {"m": int(ms[j]), "tau": int(taus[i])}
+            why = "; ".join(f"m={int(mm)}: {r}" for mm, r in dips["reason"].items())
+            warnings.warn(
+                f"no window length shows a significant forecast-error dip ({why}), so the delay "
+                "is unknown (delay_ = NaN). Try a longer record, a coarser sampling step (fewer "
+                "samples per delay), less measurement noise, or a wider tau range around the "
+                "expected delay.",
+                NoDipWarning, stacklevel=3,
+            )
         self.best_index_ = params.index(self.best_params_)
         self.best_score_ = float(results["mean_test_score"][self.best_index_])
 

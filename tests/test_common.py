@@ -16,6 +16,7 @@ from skdelay._selection import DelaySelectorCV
     TwoWindowEmbedding(m=1, tau=2),
     LocalLinearDelayMap(),
     LocalLinearDelayMap(n_neighbors=5, radius=0.5, order=0),
+    DelaySelectorCV(),
     DelaySelectorCV(m=(1, 2), tau=1),
     DelaySelectorCV(m=1, tau=(1, 2), cv=2),
 ])

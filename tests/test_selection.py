@@ -12,13 +12,11 @@ from sklearn.pipeline import Pipeline
 from skdelay._correlation import autocorrelation, mutual_information, revival_peak
 from skdelay._embedding import TwoWindowEmbedding, required_lags
 from skdelay._local_linear import LocalLinearDelayMap
+from skdelay._scan import ScanOptions, scan_series
 from skdelay._selection import (
     DelaySelectorCV,
-    _errors_candidates,
-    _errors_exact,
     forecast_error_curve,
     locate_dips,
-    scan_series,
     theiler_from,
 )
 from skdelay._windows import lagged_windows
@@ -99,16 +97,19 @@ def test_candidate_search_is_exact_with_all_candidates(mg30):
     s = mg30[:800]
     db = np.arange(required_lags(3, 40) - 1, s.size - 1)
     q = db[::5]
-    taus = [1, 5, 29, 30, 31, 40]
+    taus = np.array([1, 5, 29, 30, 31, 40])
     for theiler, queries in [(5, q), (None, q[q > 500])]:
         db_use = db if theiler is not None else db[db < 500]
-        ex, _ = _errors_exact(s, 3, taus, db_use, queries, k=12, order=1, ridge=1e-3,
-                              radius=None, theiler=theiler, workers=1)
-        full, frac = _errors_candidates(s, 3, taus, db_use, queries, k=12, order=1, ridge=1e-3,
-                                        radius=None, theiler=theiler, workers=1,
-                                        n_candidates=db.size)
-        np.testing.assert_allclose(full, ex, rtol=1e-10)
-        assert np.all(frac == 1.0)
+        split = [(db_use, None if theiler is not None else queries)]
+        kw = {"k": 12, "theiler": theiler or 0, "refine": False,
+              "n_queries": queries.size if theiler is not None else None}
+        ex = scan_series(s, [3], taus, split, ScanOptions(search="exact", **kw),
+                         random_state=0)
+        full = scan_series(s, [3], taus, split, ScanOptions(n_candidates=db.size, **kw),
+                           random_state=0)
+        np.testing.assert_allclose(full.error, ex.error, rtol=1e-10)
+        np.testing.assert_allclose(full.se, ex.se, rtol=1e-8)
+        assert np.all(full.exact == 1.0)
 
 
 def test_candidate_search_close_to_exact(mg30):
@@ -135,14 +136,13 @@ def test_lag_matrix_and_column_paths_agree(mg30):
         sel = DelaySelectorCV(est, m=ms, tau=taus, cv=cv, search="exact", theiler_window=4)
         splits = sel._splits(X, y)
         w = 4 if cv is None else None
-        by_columns = sel._scan_columns(X, y, ms, taus, splits, est, w)
+        by_columns, se_columns = sel._scan_columns(X, y, ms, taus, splits, est, w)
         L = X.shape[1]
-        by_series, _ = scan_series(
+        res = scan_series(
             s, ms, taus, [(tr + L - 1, None if te is None else te + L - 1) for tr, te in splits],
-            k=10, order=1, ridge=1e-3, radius=None, theiler=4, n_queries=None,
-            equal_neighbourhood=False, search="exact", n_candidates=None, random_state=0,
-            n_jobs=None, verbose=0)
-        np.testing.assert_allclose(by_series, by_columns, rtol=1e-10)
+            ScanOptions(k=10, theiler=4, search="exact"), random_state=0)
+        np.testing.assert_allclose(res.error, by_columns, rtol=1e-10)
+        np.testing.assert_allclose(res.se, se_columns, rtol=1e-8)
 
 
 def test_non_lag_matrix_input_and_other_regressors(mg30):
@@ -183,8 +183,8 @@ def test_n_jobs_and_dask_give_the_same_table(mg30):
 
 
 def test_locate_dips_definition():
-    curve = pd.DataFrame({2: [10.0, 10, 9, 6, 3, 6, 9, 10, 10], 3: [10.0, 10, 9, 6, 3, 6, 9, 10, 10]},
-                         index=pd.Index(range(1, 10), name="tau"))
+    values = [10.0, 10, 9, 6, 3, 6, 9, 10, 10]
+    curve = pd.DataFrame({2: values, 3: values}, index=pd.Index(range(1, 10), name="tau"))
     dips = locate_dips(curve, level=0.5)
     assert dips.loc[2, "delay"] == pytest.approx(5.0)
     assert dips.loc[3, "delay"] == pytest.approx(4.5)  # odd m: half a sample earlier
@@ -226,7 +226,8 @@ def test_forecast_error_curve_bad_input(series, kwargs, match):
 
 def test_delay_selector_bad_input(mg30):
     X, y = lagged_windows(mg30[:500], 20)
-    with pytest.raises(ValueError, match=r"needs 31; build X with lagged_windows\(series, n_lags=31\)"):
+    with pytest.raises(ValueError,
+                       match=r"needs 31; build X with lagged_windows\(series, n_lags=31\)"):
         DelaySelectorCV(m=(2, 3), tau=30).fit(X, y)
     Xn = np.array(X)
     Xn[3, 2] = np.nan

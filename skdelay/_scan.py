@@ -1,0 +1,824 @@
+"""The delay scan: sigma_m(tau) over an ``(m, tau)`` grid, driven by one frozen options object.
+
+A row ``t`` of the scan's database is the two-window vector ``v_t(m, tau)``
+(read off the 1-D series on the fly) with target ``s[t+1]``; nothing of size
+``(n_rows, n_lags)`` is ever built.  Every local fit is
+:func:`skdelay._neighbours.fit_neighbourhood`, called from the compiled kernel
+:func:`scan_cells`.
+
+Neighbour search (``ScanOptions.search``):
+
+* ``"candidates"`` (default) -- the second window of row ``t`` is the first
+  window of row ``t - c`` (``c = second_window_start(m, tau)``), so one k-d
+  tree per ``m`` on the m-dimensional windows serves every ``tau``: each
+  needed time gets its ``K`` nearest windows once (:func:`candidate_lists`,
+  built once per ``m`` and shared by all tasks of that ``m``), and for a
+  chunk of taus the compiled kernel re-ranks, for every query ``q``, the union
+  of the neighbours of its first window and those of its second window
+  (shifted by ``c``) by the exact 2m-dimensional distance and fits the local
+  model on the ``k`` nearest.  Every point outside both lists is at least
+  ``r_K(q)^2 + r_K(q - c)^2`` away, so when the ``k``-th re-ranked distance is
+  below that bound the neighbours are provably the exact k-NN
+  (``exact_fraction``).  Candidates close in *either* window matter: with
+  first-window candidates only, rare states get neighbours far away in the
+  second window and the extrapolated forecasts can turn the dip into a peak.
+* ``"exact"`` -- a plain k-d tree on the 2m-dimensional vectors, rebuilt for
+  every ``(m, tau)`` (the reference).
+
+Standard errors: the queries of a cell (sorted in time) are cut into
+:data:`N_BATCHES` contiguous batches; the spread of the batch means of the
+squared error gives the standard error of the mean square (batch means absorb
+the short-range correlation of successive errors), propagated to the rms by
+the delta method, ``se(sigma) = se(mean e^2) / (2 sigma)``.
+
+Refinement: a coarse pass forecasts ``n_queries`` random rows for every cell;
+then the taus around each dip are recomputed with :data:`REFINE_GROWTH` times
+more queries (nested sets, up to all rows) until the dip centre's standard
+error (:func:`skdelay._dips.locate_dips`) is below ``target_centre_se``.
+
+Tasks are ``(m, chunk of taus)``, dispatched through joblib, so any
+``n_jobs`` is kept busy and ``joblib.parallel_config(backend="dask")`` runs
+the scan unchanged.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import tempfile
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from numbers import Real
+
+import numpy as np
+from joblib import Parallel, delayed, effective_n_jobs
+from numba import njit
+from scipy.spatial import cKDTree
+
+from skdelay._checks import check_positive_int, check_random_state
+from skdelay._dips import locate_dips
+from skdelay._embedding import second_window_start, two_window_columns
+from skdelay._neighbours import (
+    RADIUS_CAP,
+    chunk_slices,
+    fit_from_series,
+    fit_neighbourhood,
+    tree_neighbours,
+)
+
+__all__ = [
+    "N_BATCHES",
+    "REFINE_GROWTH",
+    "TARGET_CENTRE_SE",
+    "ScanOptions",
+    "ScanResult",
+    "candidate_lists",
+    "cell_stats",
+    "default_n_candidates",
+    "neighbourhood_mode",
+    "scan_cells",
+    "scan_series",
+]
+
+#: Contiguous query batches per cell for the standard error.  32 batch means give the
+#: standard error itself to ~13 % (chi-square with 31 degrees of freedom), and a batch
+#: of a 10^4-query cell (~300 queries, spread over ~3 % of the record) is much longer
+#: than the correlation time of successive forecast errors.
+N_BATCHES = 32
+#: Target standard error (samples) of a dip centre; refinement stops below it.
+TARGET_CENTRE_SE = 0.2
+#: Factor by which each refinement round multiplies the queries of the dip cells
+#: (halves their standard errors, since se ~ 1 / sqrt(n_queries)).
+REFINE_GROWTH = 4
+#: Tasks per worker and m: several chunks of taus per worker balance the unequal
+#: cost of the m values and of a loaded machine without re-sending lists too often.
+TASKS_PER_WORKER = 4
+#: Memory (bytes) of the default candidate lists of one m (int32, ``n_needed * K``): the
+#: list build costs ~ n_needed * K neighbour-query work too, so this also bounds its
+#: time.  10^5 rows keep the accurate 8k candidates; 10^6 rows get 67 (the paper-scale
+#: scan, where 240 took over 10 minutes of single-threaded k-d tree queries per m).
+LIST_BYTES = 1 << 28
+#: Arrays larger than this (bytes) are handed to process workers as one memory map
+#: written once, instead of joblib hashing and dumping them again for every task.
+SHARE_BYTES = 1 << 24
+
+_MODES = {"none": "none", "segment": "segment", "radius": "radius"}
+
+
+def default_n_candidates(k, n_rows=0):
+    """Candidates per window and query of the candidate search.
+
+    ``max(8 k, 64)``, reduced for long records so that the lists of ``n_rows``
+    needed times fit :data:`LIST_BYTES` (256 MB), but never below ``2 k``.
+
+    Measured on 3*10^4 noisy 12-bit Mackey-Glass points (delay 100, ``k = 30``,
+    m = 2 and 4, six delays around and away from the dip, 3000 queries): the
+    relative difference of sigma to the exact search was, median / max,
+    1.0 % / 4.8 % for ``2k`` candidates, 1.7 % / 2.9 % for ``4k`` and
+    0.3 % / 2.0 % for ``8k`` (exact neighbourhoods: < 0.1 %, 1-4 %, 15-26 %).
+    Below ``64`` the lists of small ``k`` miss too much of the other window.
+    The price is memory and time: the lists hold ``n_rows * n_candidates``
+    int32 per ``m`` (1 GB for 10^6 rows at 240) and cost as many neighbour
+    queries, hence the cap; pass ``n_candidates`` to override it.
+
+    Examples
+    --------
+    >>> from skdelay._scan import default_n_candidates
+    >>> default_n_candidates(30), default_n_candidates(4), default_n_candidates(30, 10**6)
+    (240, 64, 67)
+    """
+    accurate = max(8 * int(k), 64)
+    if n_rows > 0:
+        accurate = min(accurate, LIST_BYTES // (4 * int(n_rows)))
+    return max(accurate, 2 * int(k))
+
+
+def neighbourhood_mode(value):
+    """Named mode of the public ``equal_neighbourhood`` values.
+
+    ``False``/``None`` -> ``"none"``, ``True``/``"segment"`` -> ``"segment"``,
+    ``"radius"`` -> ``"radius"``.
+    """
+    if value is None or value is False or (isinstance(value, np.bool_) and not value):
+        return "none"
+    if value is True or (isinstance(value, np.bool_) and value):
+        return "segment"
+    if isinstance(value, str) and value in _MODES:
+        return _MODES[value]
+    raise ValueError(
+        "equal_neighbourhood must be False, True/'segment' (shorter series for smaller m) "
+        f"or 'radius' (one neighbourhood radius for every m), got {value!r}."
+    )
+
+
+@dataclass(frozen=True)
+class ScanOptions:
+    """Validated settings of one delay scan (built once, passed to every task).
+
+    Parameters
+    ----------
+    k : int, default=30
+        Neighbourhood size.
+    order : {1, 0}, default=1
+        Local linear or local constant fits.
+    ridge : float, default=1e-3
+        Relative ridge of the local fits (>= 0).
+    radius : float or None, default=None
+        Radius neighbourhoods (in the units of the scanned series) with k-NN fallback.
+    theiler : int, default=0
+        Temporal exclusion of the in-sample error (out-of-sample splits ignore it).
+    search : {"candidates", "exact"}, default="candidates"
+        Neighbour search (see the module notes).
+    n_candidates : int, default=None
+        Candidates per window for ``"candidates"``; None: :func:`default_n_candidates`
+        of the number of needed times (see :meth:`candidates_for`).
+    neighbourhood : {"none", "segment", "radius"} or bool, default="none"
+        Equal neighbourhood size for every ``m`` (normalised by :func:`neighbourhood_mode`).
+    n_queries : int or None, default=None
+        Queries of the coarse pass per cell; None: every row.
+    refine : bool, default=True
+        Recompute the taus around each dip with more queries (see the module notes).
+    target_centre_se : float, default=TARGET_CENTRE_SE
+        Refinement stops when every dip centre's standard error is below this.
+
+    Examples
+    --------
+    >>> from skdelay._scan import ScanOptions
+    >>> ScanOptions(k=10).candidates_for(1000), ScanOptions(k=10, n_candidates=12).n_candidates
+    (80, 12)
+    >>> ScanOptions(k=10, n_candidates=5)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ValueError: n_candidates=5 is smaller than n_neighbors=10: ... use n_candidates >= 10 ...
+    """
+
+    k: int = 30
+    order: int = 1
+    ridge: float = 1e-3
+    radius: float | None = None
+    theiler: int = 0
+    search: str = "candidates"
+    n_candidates: int | None = None
+    neighbourhood: str = "none"
+    n_queries: int | None = None
+    refine: bool = True
+    target_centre_se: float = TARGET_CENTRE_SE
+
+    def __post_init__(self):
+        k = check_positive_int(self.k, name="n_neighbors")
+        if isinstance(self.order, (bool, np.bool_)) or self.order not in (0, 1):
+            raise ValueError(f"order must be 0 (local constant) or 1 (local linear), got "
+                             f"{self.order!r}.")
+        if not isinstance(self.ridge, Real) or not self.ridge >= 0 or not np.isfinite(self.ridge):
+            raise ValueError(f"ridge must be a finite number >= 0 (relative to the "
+                             f"neighbourhood's variance, e.g. 1e-3), got {self.ridge!r}.")
+        if self.radius is not None and (not isinstance(self.radius, Real)
+                                        or not self.radius > 0 or not np.isfinite(self.radius)):
+            raise ValueError(f"radius must be None (k-NN) or a finite number > 0 in the units "
+                             f"of the series, got {self.radius!r}.")
+        theiler = check_positive_int(self.theiler, name="theiler_window", minimum=0)
+        if self.search not in ("candidates", "exact"):
+            raise ValueError(f"search must be 'candidates' or 'exact', got {self.search!r}.")
+        if self.n_candidates is None:
+            n_cand = None
+        else:
+            n_cand = check_positive_int(self.n_candidates, name="n_candidates")
+            if n_cand < k:
+                raise ValueError(
+                    f"n_candidates={n_cand} is smaller than n_neighbors={k}: the re-ranked "
+                    f"candidates could not fill a neighbourhood; use n_candidates >= {k} "
+                    "(default max(8 k, 64), fewer for long records)."
+                )
+        n_queries = (None if self.n_queries is None
+                     else check_positive_int(self.n_queries, name="n_queries"))
+        if not isinstance(self.target_centre_se, Real) or not self.target_centre_se > 0:
+            raise ValueError(f"target_centre_se must be > 0 samples, got "
+                             f"{self.target_centre_se!r}.")
+        for name, value in (("k", k), ("theiler", theiler), ("n_candidates", n_cand),
+                            ("n_queries", n_queries), ("order", int(self.order)),
+                            ("ridge", float(self.ridge)), ("refine", bool(self.refine)),
+                            ("neighbourhood", neighbourhood_mode(self.neighbourhood)),
+                            ("radius", None if self.radius is None else float(self.radius))):
+            object.__setattr__(self, name, value)
+
+    def candidates_for(self, n_needed):
+        """Candidates per window for lists of ``n_needed`` times."""
+        if self.n_candidates is not None:
+            return self.n_candidates
+        return default_n_candidates(self.k, n_needed)
+
+    def check_rows(self, n_rows, *, in_sample=True):
+        """Raise ValueError unless ``n_rows`` rows leave a neighbourhood for every query."""
+        if in_sample and self.theiler >= n_rows:
+            raise ValueError(
+                f"theiler_window={self.theiler} is not shorter than the {n_rows} rows of the "
+                "scan; use a smaller theiler_window or a longer series."
+            )
+        free = n_rows - (2 * self.theiler + 1 if in_sample else 0)
+        if free < self.k:
+            raise ValueError(
+                f"theiler_window={self.theiler} leaves {max(free, 0)} of the {n_rows} rows as "
+                f"neighbours of a query, fewer than n_neighbors={self.k}; use a smaller "
+                "theiler_window, fewer neighbours, a smaller tau/m range or a longer series."
+            )
+
+
+@dataclass
+class ScanResult:
+    """Raw output of :func:`scan_series` (errors in the units of the scanned series).
+
+    Arrays are ``(n_splits, n_m, n_tau)``: ``error`` (rms one-step error),
+    ``se`` (its standard error), ``n_queries`` and ``exact`` (fraction of
+    provably exact neighbourhoods); ``coarse`` ``(n_m, n_tau)`` marks cells not
+    refined beyond the coarse pass.
+    """
+
+    error: np.ndarray
+    se: np.ndarray
+    n_queries: np.ndarray
+    exact: np.ndarray
+    coarse: np.ndarray
+    segment_length: dict
+    radius: float | None
+
+
+# ----------------------------------------------------------------------------- kernels
+@njit(cache=True)
+def _kth_smallest(a, k):
+    """k-th smallest (0-based) value of ``a``, reordering ``a`` in place (quickselect)."""
+    lo, hi = 0, a.size - 1
+    while lo < hi:
+        pivot = a[(lo + hi) // 2]
+        i, j = lo, hi
+        while i <= j:
+            while a[i] < pivot:
+                i += 1
+            while a[j] > pivot:
+                j -= 1
+            if i <= j:
+                a[i], a[j] = a[j], a[i]
+                i += 1
+                j -= 1
+        if k <= j:
+            hi = j
+        elif k >= i:
+            lo = i
+        else:
+            break
+    return a[k]
+
+
+@njit(cache=True)
+def scan_cells(s, q_t, lists, rk2, row_of, u_min, starts, m, k, radius2, width, is_db,
+               ridge, order, fallback, sq, n_exact):
+    """Squared one-step errors of a chunk of taus: re-rank the candidates and fit, compiled.
+
+    For every query ``q`` of ``q_t`` and start ``c`` of ``starts`` (one per
+    tau): the candidates are ``lists[row_of[q - u_min]]`` (first window) and
+    ``lists[row_of[q - c - u_min]] + c`` (second window), kept if they are
+    database times (``is_db``); duplicates are skipped with a small hash set.
+    The ``k`` nearest by the exact 2m-dimensional distance (or, with
+    ``radius2 > 0``, up to ``width`` within ``max(radius2, k-th distance)``)
+    are fitted by :func:`~skdelay._neighbours.fit_neighbourhood`.  Adds the
+    squared error to ``sq[tau_index, batch]`` (batch ``i * n_batches //
+    n_queries`` of query ``i``) and counts in ``n_exact[tau_index]`` the
+    queries whose neighbourhood is provably exact (k-th distance within
+    ``rk2[q] + rk2[q - c]``).
+
+    Queries are the outer loop: a query's first-window candidates and their
+    first-window distances are read once and reused for every tau of the chunk
+    (the reads of scattered series values dominate the cost).
+    """
+    n_q = q_t.size
+    n_tau = starts.size
+    n_batches = sq.shape[1]
+    kk = lists.shape[1]
+    p = 2 * m
+    first = np.empty(kk, dtype=np.int64)
+    first_d = np.empty(kk)
+    cand = np.empty(2 * kk, dtype=np.int64)
+    dist = np.empty(2 * kk)
+    scratch = np.empty(2 * kk)
+    size = 1
+    while size < 4 * kk:  # load factor <= 1/2 keeps linear probing short
+        size *= 2
+    table = np.full(size, -1, dtype=np.int64)
+    touched = np.empty(2 * kk, dtype=np.int64)
+    Vn = np.empty((width, p))
+    yn = np.empty(width)
+    w = np.empty(width)
+    vq = np.empty(p)
+    mu = np.empty(p)
+    G = np.empty((p, p))
+    rhs = np.empty(p)
+    a = np.empty(p)
+    n_max = is_db.size
+    for i in range(n_q):
+        q = q_t[i]
+        r1 = row_of[q - u_min]
+        batch = (i * n_batches) // n_q
+        n1 = 0
+        for c in range(kk):  # first-window candidates: the same for every tau
+            j = np.int64(lists[r1, c])
+            if j < 0 or j >= n_max or not is_db[j]:
+                continue
+            h = (j * 2654435761) & (size - 1)
+            while table[h] != -1 and table[h] != j:
+                h = (h + 1) & (size - 1)
+            if table[h] == j:
+                continue
+            table[h] = j
+            touched[n1] = h
+            acc = 0.0
+            for lag in range(m):
+                d = s[q - lag] - s[j - lag]
+                acc += d * d
+            first[n1] = j
+            first_d[n1] = acc
+            n1 += 1
+        for lag in range(m):
+            vq[lag] = s[q - lag]
+        for it in range(n_tau):
+            c0 = starts[it]
+            r2 = row_of[q - c0 - u_min]
+            for lag in range(m):
+                vq[m + lag] = s[q - c0 - lag]
+            nc = 0
+            for c in range(n1):
+                j = first[c]
+                acc = first_d[c]
+                for lag in range(m):
+                    d = vq[m + lag] - s[j - c0 - lag]
+                    acc += d * d
+                cand[nc] = j
+                dist[nc] = acc
+                nc += 1
+            n2 = n1
+            for c in range(kk):  # second-window candidates of this tau
+                j = np.int64(lists[r2, c])
+                if j < 0:
+                    continue
+                j += c0
+                if j >= n_max or not is_db[j]:
+                    continue
+                h = (j * 2654435761) & (size - 1)
+                while table[h] != -1 and table[h] != j:
+                    h = (h + 1) & (size - 1)
+                if table[h] == j:
+                    continue
+                table[h] = j
+                touched[n2] = h
+                n2 += 1
+                acc = 0.0
+                for lag in range(m):
+                    d = vq[lag] - s[j - lag]
+                    acc += d * d
+                    d = vq[m + lag] - s[j - c0 - lag]
+                    acc += d * d
+                cand[nc] = j
+                dist[nc] = acc
+                nc += 1
+            # drop this tau's entries; they were inserted after the first-window ones,
+            # so the probe chains of those stay intact
+            for c in range(n1, n2):
+                table[touched[c]] = -1
+            if nc == 0:
+                pred = fallback
+            else:
+                scratch[:nc] = dist[:nc]
+                reach = max(_kth_smallest(scratch[:nc], min(k, nc) - 1), radius2)
+                if reach <= rk2[r1] + rk2[r2]:
+                    n_exact[it] += 1
+                used = 0
+                for c in range(nc):
+                    if dist[c] <= reach and used < width:
+                        j = cand[c]
+                        for lag in range(m):
+                            Vn[used, lag] = s[j - lag]
+                            Vn[used, m + lag] = s[j - c0 - lag]
+                        yn[used] = s[j + 1]
+                        w[used] = 1.0
+                        used += 1
+                for c in range(used, width):
+                    w[c] = 0.0
+                _, pred = fit_neighbourhood(Vn, yn, w, vq, ridge, order, fallback, mu, G, rhs,
+                                            a)
+            e = pred - s[q + 1]
+            sq[it, batch] += e * e
+        for c in range(n1):
+            table[touched[c]] = -1
+
+
+def candidate_lists(s, m, members, needed, n_list, theiler, workers=1):
+    """``n_list`` nearest first-window neighbours (times, -1 = none) of every needed time.
+
+    Neighbours come from ``members`` (times); with ``theiler`` (None: no
+    exclusion), members within ``theiler`` samples of the needed time are
+    dropped (from ``n_list`` plus a margin of nearest, so fewer may remain).
+    Returns ``lists`` (int32, ``(needed.size, n_list)``) and ``rk2``, the
+    squared distance of the last neighbour queried: every member outside a
+    list is at least that far away.
+    """
+    first = np.arange(m)
+    tree = cKDTree(s[members[:, None] - first])
+    # query a margin for the Theiler-excluded times; on long records the temporal
+    # neighbours are rarely among the nearest, so the margin is capped (a list may then
+    # hold fewer than n_list valid entries, and the bound stays valid)
+    excl = 0 if theiler is None else min(2 * theiler + 1, max(n_list // 2, 1))
+    kq = min(members.size, n_list + excl)
+    lists = np.full((needed.size, n_list), -1, dtype=np.int32)
+    rk2 = np.empty(needed.size)
+    for sl in chunk_slices(needed.size, 3 * kq):
+        d, pos = tree.query(s[needed[sl, None] - first], k=kq, workers=workers)
+        d, pos = d.reshape(-1, kq), pos.reshape(-1, kq)
+        rk2[sl] = d[:, -1] ** 2 if kq < members.size else np.inf
+        times = members[pos]
+        if theiler is None:
+            lists[sl, :min(kq, n_list)] = times[:, :n_list]
+            continue
+        keep = np.abs(times - needed[sl, None]) > theiler
+        order = np.argsort(~keep, axis=1, kind="stable")[:, :n_list]
+        kept = np.take_along_axis(keep, order, 1)
+        lists[sl, :order.shape[1]] = np.where(kept, np.take_along_axis(times, order, 1), -1)
+    return lists, rk2
+
+
+def _batch_ids(n_q, n_batches):
+    return (np.arange(n_q) * n_batches) // n_q
+
+
+def _exact_task(s, m, taus, db_t, q_t, opt, n_batches):
+    """Reference search: a k-d tree on the 2m-dimensional vectors for every tau."""
+    sq = np.zeros((len(taus), n_batches))
+    fallback = float(s[db_t + 1].mean())
+    batch = _batch_ids(q_t.size, n_batches)
+    theiler = opt["theiler"]
+    for i, tau in enumerate(taus):
+        cols = two_window_columns(m, int(tau))
+        tree = cKDTree(s[db_t[:, None] - cols])
+        kk = opt["k"] * (RADIUS_CAP if opt["radius"] else 1)
+        for sl in chunk_slices(q_t.size, kk * 2 * m):
+            pos, weight = tree_neighbours(
+                tree, s[q_t[sl, None] - cols], opt["k"], radius=opt["radius"],
+                query_ids=None if theiler is None else q_t[sl], fit_ids=db_t,
+                theiler_window=0 if theiler is None else theiler, workers=1)
+            pred = fit_from_series(s, q_t[sl], db_t[pos], weight, cols, opt["ridge"],
+                                   opt["order"], fallback)
+            sq[i] += np.bincount(batch[sl], (pred - s[q_t[sl] + 1]) ** 2, minlength=n_batches)
+    return sq, np.full(len(taus), q_t.size)
+
+
+def _candidates_task(s, m, starts, db_t, q_t, shared, opt, n_batches):
+    lists, rk2, row_of, u_min, is_db = (np.asarray(a) if isinstance(a, np.ndarray) else a
+                                        for a in shared)
+    k = min(opt["k"], db_t.size)
+    width = k if opt["radius"] is None else min(2 * lists.shape[1], RADIUS_CAP * k)
+    radius2 = 0.0 if opt["radius"] is None else opt["radius"] ** 2
+    sq = np.zeros((starts.size, n_batches))
+    n_exact = np.zeros(starts.size, dtype=np.int64)
+    scan_cells(s, q_t, lists, rk2, row_of, u_min, starts, m, k, radius2, width, is_db,
+               opt["ridge"], opt["order"], float(s[db_t + 1].mean()), sq, n_exact)
+    return sq, n_exact
+
+
+# ----------------------------------------------------------------------------- equal neighbourhoods
+def _mean_kth_distance(s, m, tau, db_t, k, theiler, rng, n_probe=1000):
+    cols = two_window_columns(m, tau)
+    V = s[db_t[:, None] - cols]
+    probes = rng.choice(db_t.size, size=min(n_probe, db_t.size), replace=False)
+    pos, weight = tree_neighbours(cKDTree(V), V[probes], k, query_ids=db_t[probes],
+                                  fit_ids=db_t, theiler_window=theiler)
+    dist = np.linalg.norm(V[pos] - V[probes][:, None, :], axis=2)
+    return float(np.where(weight, dist, 0.0).max(axis=1).mean())
+
+
+def _segment_length(s, m, tau, db_t, k, theiler, d_ref, rng, n_min):
+    """Length of the (last) database segment whose mean k-th distance is d_ref."""
+    n_hi, d_hi = db_t.size, _mean_kth_distance(s, m, tau, db_t, k, theiler, rng)
+    if d_hi >= d_ref:
+        return n_hi
+    while True:
+        n_lo = max(n_min, n_hi // 2)
+        d_lo = _mean_kth_distance(s, m, tau, db_t[-n_lo:], k, theiler, rng)
+        if d_lo >= d_ref or n_lo == n_min:
+            break
+        n_hi, d_hi = n_lo, d_lo
+    if d_lo < d_ref or d_lo == d_hi:
+        return n_lo
+    frac = (np.log(d_ref) - np.log(d_hi)) / (np.log(d_lo) - np.log(d_hi))
+    return round(float(np.exp(np.log(n_hi) + frac * (np.log(n_lo) - np.log(n_hi)))))
+
+
+# ----------------------------------------------------------------------------- driver
+class _Shared:
+    """Arrays handed to process workers as memory maps written once (see SHARE_BYTES)."""
+
+    def __init__(self, enabled):
+        self.enabled = enabled
+        self.folder = None
+        self.count = 0
+
+    def __call__(self, arr):
+        if not self.enabled or arr.nbytes < SHARE_BYTES:
+            return arr
+        if self.folder is None:
+            self.folder = tempfile.mkdtemp(prefix="skdelay-scan-")
+        self.count += 1
+        path = os.path.join(self.folder, f"a{self.count}.npy")
+        np.save(path, arr)
+        return np.load(path, mmap_mode="r")
+
+    def release(self, arrays):
+        """Delete the files of memory-mapped arrays whose tasks are done."""
+        for arr in arrays:
+            path = getattr(arr, "filename", None)
+            if isinstance(arr, np.memmap) and path and self.folder \
+                    and os.path.dirname(os.path.abspath(path)) == os.path.abspath(self.folder):
+                os.remove(path)
+
+    def close(self):
+        if self.folder is not None:
+            shutil.rmtree(self.folder, ignore_errors=True)
+            self.folder = None
+
+
+def cell_stats(sq, n_q):
+    """rms error and its standard error from per-batch sums of squared errors.
+
+    ``sq`` (n_cells, n_batches) holds the sums of the squared errors of the
+    ``n_q`` queries cut into contiguous batches (query ``i`` in batch
+    ``i * n_batches // n_q``).  The standard error of the mean square is the
+    spread of the batch means over ``sqrt(n_batches)``; the delta method gives
+    that of the rms, ``se / (2 rms)``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from skdelay._scan import cell_stats
+    >>> e2 = np.random.default_rng(0).normal(size=6400) ** 2   # errors of unit variance
+    >>> sq = np.bincount(np.arange(6400) * 32 // 6400, e2)[None, :]
+    >>> rms, se = cell_stats(sq, 6400)
+    >>> bool(abs(rms[0] - 1) < 3 * se[0]), bool(0.005 < se[0] < 0.015)  # ~ 1 / sqrt(2 n)
+    (True, True)
+    """
+    n_b = sq.shape[1]
+    counts = np.bincount(_batch_ids(n_q, n_b), minlength=n_b)
+    msq = sq.sum(axis=1) / n_q
+    rms = np.sqrt(msq)
+    used = counts > 0
+    if used.sum() < 2:
+        return rms, np.full(rms.shape, np.nan)
+    means = sq[:, used] / counts[used]
+    se_msq = means.std(axis=1, ddof=1) / math.sqrt(used.sum())
+    with np.errstate(divide="ignore", invalid="ignore"):
+        se = np.where(rms > 0, se_msq / (2 * rms), 0.0)
+    return rms, se
+
+
+def scan_series(s, ms, taus, splits, options, *, random_state=None, n_jobs=None, verbose=0,
+                progress=False):
+    """Forecast errors of every ``(split, m, tau)`` cell (not normalised) and their metadata.
+
+    Parameters
+    ----------
+    s : ndarray of shape (n_samples,)
+        The series (already rescaled to unit order, see ``Standardiser``).
+    ms, taus : ndarray of int
+        Sorted grids.
+    splits : list of (ndarray, ndarray or None)
+        ``(db_t, test_t)`` times; ``test_t=None`` is the in-sample,
+        Theiler-excluded error over the database itself.
+    options : ScanOptions
+    random_state, n_jobs, verbose, progress
+        Query subsets; joblib workers and verbosity; a tqdm bar over the tasks.
+
+    Returns
+    -------
+    ScanResult
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from skdelay._scan import ScanOptions, scan_series
+    >>> rng = np.random.default_rng(0)
+    >>> s = np.zeros(3000)
+    >>> s[:9] = rng.uniform(size=9)
+    >>> for t in range(8, 2999):   # delay 7
+    ...     s[t + 1] = 0.5 * s[t] + 0.5 * (np.sin(3 * s[t - 6]) + np.sin(3 * s[t - 7]))
+    >>> db = np.arange(15, 2999)
+    >>> res = scan_series(s, [2], np.arange(1, 15), [(db, None)],
+    ...                   ScanOptions(k=20, theiler=5, n_queries=500), random_state=0)
+    >>> int(np.argmin(res.error[0, 0])) + 1, res.error.shape, bool(np.all(res.se > 0))
+    (7, (1, 1, 14), True)
+    """
+    rng = check_random_state(random_state)
+    opt = options
+    n_workers = max(1, effective_n_jobs(n_jobs))
+    n_m, n_tau, n_split = len(ms), len(taus), len(splits)
+    ms = np.asarray(ms, dtype=np.int64)
+    taus = np.asarray(taus, dtype=np.int64)
+    err = np.full((n_split, n_m, n_tau), np.nan)
+    se = np.full_like(err, np.nan)
+    nq = np.zeros(err.shape, dtype=np.int64)
+    exact = np.zeros_like(err)
+    seg_len, radius = {}, opt.radius
+    plans = []  # per split: per m (db_m, query order)
+    for db_t, test_t in splits:
+        w = opt.theiler if test_t is None else None
+        seg = {int(m): db_t.size for m in ms}
+        rad = opt.radius
+        if opt.neighbourhood != "none" and n_m > 1:
+            tau_ref = int(np.median(taus))
+            n_min = min(db_t.size, max(4 * opt.k + 2 * (w or 0) + 2, 50))
+            d_ref = _mean_kth_distance(s, int(ms[-1]), tau_ref, db_t, opt.k, w or 0, rng)
+            if opt.neighbourhood == "radius":
+                rad = radius = d_ref
+            else:
+                for m in ms[:-1]:
+                    seg[int(m)] = _segment_length(s, int(m), tau_ref, db_t, opt.k, w or 0,
+                                                  d_ref, rng, n_min)
+        pool = db_t if test_t is None else test_t
+        perm = rng.permutation(pool)  # nested query sets: the first n of one order
+        per_m = {}
+        for m in ms:
+            db_m = db_t[-seg[int(m)]:]
+            order = perm if test_t is not None or db_m.size == db_t.size \
+                else perm[np.isin(perm, db_m)]
+            per_m[int(m)] = (db_m, order)
+            seg_len[int(m)] = int(db_m.size)
+        plans.append((w, rad, per_m))
+
+    job_opt = {"k": opt.k, "order": opt.order, "ridge": opt.ridge, "theiler": None}
+    shared = _Shared(n_workers > 1)
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=0, desc="delay scan", unit="task")
+
+    def prepare(cell):
+        """The tasks of one (split, m) cell: query set, chunks, shared candidate lists."""
+        split, m, idx, n_q = cell
+        w, rad, per_m = plans[split]
+        db_m, order = per_m[m]
+        q_t = np.sort(order[:n_q])
+        o = dict(job_opt, theiler=w, radius=rad)
+        n_b = min(N_BATCHES, q_t.size)
+        n_chunks = max(1, min(idx.size, TASKS_PER_WORKER * n_workers))
+        chunks = [c for c in np.array_split(idx, n_chunks) if c.size]
+        if opt.search == "exact":
+            tasks = [delayed(_exact_task)(s, m, taus[c], db_m, q_t, o, n_b) for c in chunks]
+            return cell, q_t, chunks, tasks, ()
+        starts = np.array([second_window_start(m, int(t)) for t in taus[idx]])
+        arrays = _shared_candidates(s, m, db_m, q_t, np.unique(starts), opt, w, n_workers)
+        arrays = tuple(shared(a) if isinstance(a, np.ndarray) else a for a in arrays)
+        tasks = [delayed(_candidates_task)(
+            s, m, np.array([second_window_start(m, int(t)) for t in taus[c]]),
+            db_m, q_t, arrays, o, n_b) for c in chunks]
+        return cell, q_t, chunks, tasks, arrays
+
+    def execute(prepared, parallel):
+        (split, m, _, _), q_t, chunks, tasks, arrays = prepared
+        if bar is not None:
+            bar.total += len(tasks)
+            bar.refresh()
+        j = ms.tolist().index(m)
+        for c, (sq, n_ex) in zip(chunks, parallel(tasks)):
+            rms, sem = cell_stats(sq, q_t.size)
+            err[split, j, c] = rms
+            se[split, j, c] = sem
+            nq[split, j, c] = q_t.size
+            exact[split, j, c] = n_ex / q_t.size
+            if bar is not None:
+                bar.update(1)
+        shared.release(arrays)
+
+    def run(cells, parallel):
+        """cells: list of (split, m, tau indices, n_queries)."""
+        if n_workers == 1 or len(cells) < 2:
+            for cell in cells:
+                execute(prepare(cell), parallel)
+            return
+        # build the next cell's candidate lists (k-d tree queries release the GIL) while
+        # the workers scan this one: at 10^6 rows the lists take as long as the scan
+        with ThreadPoolExecutor(max_workers=1) as pool:
+            ahead = pool.submit(prepare, cells[0])
+            for n in range(len(cells)):
+                prepared = ahead.result()
+                if n + 1 < len(cells):
+                    ahead = pool.submit(prepare, cells[n + 1])
+                execute(prepared, parallel)
+
+    try:
+        with Parallel(n_jobs=n_jobs, verbose=verbose) as parallel:
+            coarse_cells = []
+            for split, (_, _, per_m) in enumerate(plans):
+                for m in ms[::-1]:  # costliest (largest m) first: better load balance
+                    n_all = per_m[int(m)][1].size
+                    n_q = n_all if opt.n_queries is None else min(opt.n_queries, n_all)
+                    coarse_cells.append((split, int(m), np.arange(n_tau), n_q))
+            run(coarse_cells, parallel)
+            n_coarse = nq.copy()
+            if opt.refine and n_tau >= 3:
+                _refine(err, se, nq, plans, ms, taus, opt, run, parallel)
+    finally:
+        shared.close()
+        if bar is not None:
+            bar.close()
+    n_all = np.array([[per_m[int(m)][1].size for m in ms] for (_, _, per_m) in plans])
+    # coarse: some split still forecasts only the coarse subset of its rows there
+    coarse = np.any((nq == n_coarse) & (n_coarse < n_all[:, :, None]), axis=0)
+    return ScanResult(error=err, se=se, n_queries=nq, exact=exact, coarse=coarse,
+                      segment_length=seg_len, radius=radius)
+
+
+def _curve_and_se(err, se):
+    """Mean over splits and its standard error (independent folds)."""
+    n_split = err.shape[0]
+    return err.mean(axis=0), np.sqrt(np.sum(se ** 2, axis=0)) / n_split
+
+
+def _refine(err, se, nq, plans, ms, taus, opt, run, parallel):
+    """More queries on the taus around each dip until its centre is known to target."""
+    import pandas as pd
+
+    while True:
+        curve, curve_se = _curve_and_se(err, se)
+        fe = pd.DataFrame(curve.T, index=pd.Index(taus, name="tau"),
+                          columns=pd.Index(ms, name="m"))
+        sef = pd.DataFrame(np.nan_to_num(curve_se.T, nan=0.0), index=fe.index,
+                           columns=fe.columns)
+        dips = locate_dips(fe, se=sef)
+        cells = []
+        for j, m in enumerate(ms):
+            row = dips.loc[m]
+            if row["centre_se"] < opt.target_centre_se or "edge" in row["reason"]:
+                continue
+            # the cells a redrawn curve could put its dip run on
+            reach = 2 * float(row["half_width"]) + 2 * float(row["centre_se"]) + 1
+            idx = np.flatnonzero(np.abs(taus - float(row["delay"])) <= reach)
+            for split, (_, _, per_m) in enumerate(plans):
+                n_all = per_m[int(m)][1].size
+                n_now = int(nq[split, j, idx].min()) if idx.size else n_all
+                if idx.size == 0 or n_now >= n_all:
+                    continue
+                cells.append((split, int(m), idx, min(n_all, REFINE_GROWTH * n_now)))
+        if not cells:
+            return
+        run(cells, parallel)
+
+
+def _shared_candidates(s, m, db_t, q_t, starts, opt, theiler, n_workers):
+    """Candidate lists of one ``m`` for queries ``q_t`` and second-window ``starts``."""
+    reach_back = int(starts.max())
+    members = np.arange(max(m - 1, int(db_t.min()) - reach_back), int(db_t.max()) + 1)
+    needed = np.unique(np.concatenate([q_t, (q_t[:, None] - starts[None, :]).ravel()]))
+    u_min = int(needed[0])
+    row_of = np.full(int(needed[-1]) - u_min + 1, -1, dtype=np.int64)
+    row_of[needed - u_min] = np.arange(needed.size)
+    lists, rk2 = candidate_lists(s, m, members, needed, opt.candidates_for(needed.size),
+                                 theiler, workers=n_workers)
+    is_db = np.zeros(s.size, dtype=np.bool_)
+    is_db[db_t] = True
+    return lists, rk2, row_of, u_min, is_db

@@ -1,0 +1,221 @@
+"""The scan module: options, scale invariance, standard errors, significance, refinement."""
+
+import warnings
+
+import numpy as np
+import pytest
+from _dde import measured_mackey_glass
+
+from skdelay._embedding import required_lags
+from skdelay._local_linear import LocalLinearDelayMap
+from skdelay._scan import ScanOptions, default_n_candidates, neighbourhood_mode
+from skdelay._selection import DelaySelectorCV, NoDipWarning, forecast_error_curve, locate_dips
+from skdelay._windows import lagged_windows
+
+
+@pytest.fixture(scope="module")
+def mg30():
+    return measured_mackey_glass(6000, 30, seed=0)
+
+
+# ----------------------------------------------------------------------------- options
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"ridge": -1e-3}, r"ridge must be a finite number >= 0"),
+        ({"radius": 0.0}, r"radius must be None \(k-NN\) or a finite number > 0"),
+        ({"order": 2}, r"order must be 0 \(local constant\) or 1 \(local linear\), got 2"),
+        ({"k": 10, "n_candidates": 5},
+         r"n_candidates=5 is smaller than n_neighbors=10: .* use n_candidates >= 10"),
+        ({"search": "kd"}, r"search must be 'candidates' or 'exact', got 'kd'"),
+        ({"neighbourhood": "x"}, r"equal_neighbourhood must be False"),
+        ({"n_queries": 0}, r"n_queries must be >= 1"),
+    ],
+)
+def test_scan_options_reject_bad_values(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        ScanOptions(**kwargs)
+
+
+def test_scan_options_normalise_and_default_candidates():
+    assert [neighbourhood_mode(v) for v in (False, None, True, "segment", "radius")] == [
+        "none", "none", "segment", "segment", "radius"]
+    opts = ScanOptions(k=30, neighbourhood=True, ridge=0)
+    assert opts.neighbourhood == "segment" and opts.candidates_for(10**5) == 240
+    assert default_n_candidates(30) == 240 and ScanOptions(k=3).candidates_for(500) == 64
+    # long records: the lists of one m stay within 256 MB, but at least 2k candidates
+    assert default_n_candidates(30, 10**6) == 67 and default_n_candidates(30, 10**7) == 60
+    with pytest.raises(AttributeError):
+        opts.k = 3  # frozen
+
+
+def test_theiler_window_that_leaves_no_neighbours(mg30):
+    s = mg30[:300]
+    with pytest.raises(ValueError, match=r"theiler_window=5000 is not shorter than the 2\d\d rows"):
+        forecast_error_curve(s, m=(2,), tau=range(1, 10), theiler_window=5000)
+    with pytest.raises(ValueError, match=r"theiler_window=140 leaves 9 of the 290 rows as "
+                       r"neighbours of a query, fewer than n_neighbors=30"):
+        forecast_error_curve(s, m=(2,), tau=range(1, 10), theiler_window=140)
+    with pytest.raises(ValueError, match=r"radius must be None"):
+        forecast_error_curve(s, m=(2,), tau=range(1, 10), radius=-1.0)
+
+
+# ----------------------------------------------------------------------------- scale
+def test_curve_is_scale_invariant(mg30):
+    s = measured_mackey_glass(3000, 30, noise=0.01, bits=None, seed=3)  # no ties
+    kw = {"m": (2, 3), "tau": range(26, 35), "n_queries": 400, "random_state": 0}
+    ref = forecast_error_curve(s, **kw)
+    for factor in (1e300, 1e-300, -7.3):
+        other = forecast_error_curve(s * factor, **kw)
+        np.testing.assert_allclose(other, ref, rtol=1e-9)
+        np.testing.assert_allclose(other.attrs["se"], ref.attrs["se"], rtol=1e-6)
+    assert 0.01 < ref.min().min() < 0.05  # the noise floor, not a scale artefact
+
+
+def test_constant_series_are_rejected():
+    with pytest.raises(ValueError, match="constant"):
+        forecast_error_curve(np.full(500, 3.0), m=(2,), tau=range(1, 5))
+    wobble = 1.0 + 1e-16 * np.random.default_rng(0).standard_normal(500)
+    with pytest.raises(ValueError, match=r"constant up to rounding"):
+        forecast_error_curve(wobble, m=(2,), tau=range(1, 5))
+
+
+# ----------------------------------------------------------------------------- significance
+def _periodic_feedback(n, per_delay=50, delay=1.0, substeps=5, seed=0):
+    """dx/dt = -x + 2 x(t-T) / (1 + x(t-T)^10), T = 1, sampled at ``per_delay`` per delay.
+
+    The right-hand side depends on the present only through -x; with T = 1 the
+    solution is a limit cycle, so the state is fixed by the last few samples and
+    the delayed window adds nothing: no dip.  (With T = 1.7 or 3 the solution is
+    chaotic and the dip stays significant even at 200 samples per delay.)
+    """
+    from skdelay.systems import measure
+
+    h = delay / per_delay / substeps
+    d = per_delay * substeps
+    steps = (n + 2000) * substeps
+    x = np.empty(steps + d + 1)
+    x[:d + 1] = 0.5
+    for i in range(d, d + steps):
+        f0 = -x[i] + 2.0 * x[i - d] / (1 + x[i - d] ** 10)
+        xp = x[i] + h * f0
+        f1 = -xp + 2.0 * x[i - d + 1] / (1 + x[i - d + 1] ** 10)
+        x[i + 1] = x[i] + 0.5 * h * (f0 + f1)
+    return measure(x[d + 2000 * substeps::substeps][:n], noise=0.005, random_state=seed)
+
+
+def test_mackey_glass_dips_are_significant():
+    from skdelay.systems import MackeyGlass, measure
+
+    x = MackeyGlass(tau=30.0).simulate(8000, random_state=0)
+    s = measure(x, noise=0.005, bits=12, random_state=0)
+    X, y = lagged_windows(s, required_lags(5, 45))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", NoDipWarning)
+        sel = DelaySelectorCV(tau=range(15, 46), n_queries=2000, random_state=0).fit(X, y)
+    dips = sel.delay_by_m_
+    assert dips["significant"].all(), dips["reason"]
+    assert np.all(np.abs(dips["delay"] - 30) < 1.0)
+    assert np.all(dips["z"] > 2 * dips["threshold"])
+    assert abs(sel.delay_ - 30) < 1.0
+    best = dips.loc[sel.best_params_["m"]]
+    assert sel.best_params_["m"] == int(dips["min_error"].idxmin())
+    assert sel.delay_error_ == best["delay_error"] and 0.5 <= sel.delay_error_ <= 5
+    assert sel.best_params_["tau"] == best["tau_best"] and abs(best["tau_best"] - 30) <= 1
+    se = sel.forecast_error_.attrs["se"]
+    assert se.shape == sel.forecast_error_.shape
+    # sigma ~ 0.006-0.015; 2000 queries give a relative standard error of a few percent
+    rel = se / sel.forecast_error_
+    assert np.all((rel > 0.003) & (rel < 0.1))
+
+
+@pytest.mark.parametrize("kind", ["ar1", "oversampled"])
+def test_no_dip_gives_nan_delay_and_a_warning(kind):
+    if kind == "ar1":
+        rng = np.random.default_rng(0)
+        s = np.zeros(6000)
+        for i in range(1, s.size):
+            s[i] = 0.9 * s[i - 1] + rng.standard_normal()
+        taus = range(1, 61)
+    else:
+        s = _periodic_feedback(6000)
+        taus = range(1, 101)
+    X, y = lagged_windows(s, required_lags(5, taus[-1]))
+    with pytest.warns(NoDipWarning, match=r"no window length shows a significant") as rec:
+        sel = DelaySelectorCV(tau=taus, n_queries=2000, random_state=0).fit(X, y)
+    message = str(rec[0].message)
+    assert "a longer record" in message and "a wider tau range" in message
+    assert "m=2: " in message and "m=5: " in message
+    assert np.isnan(sel.delay_) and np.isnan(sel.delay_error_)
+    assert not sel.delay_by_m_["significant"].any()
+    fe = sel.forecast_error_
+    m_min = int(fe.min().idxmin())
+    assert sel.best_params_ == {"m": m_min, "tau": int(fe[m_min].idxmin())}
+    assert sel.predict(X[:5]).shape == (5,)
+
+
+def test_default_grid_adapts_to_the_lag_columns(mg30):
+    X, y = lagged_windows(mg30, 45)
+    sel = DelaySelectorCV(n_queries=1500, random_state=0).fit(X, y)
+    fe = sel.forecast_error_
+    assert list(fe.columns) == [2, 3, 4, 5]
+    assert fe.index[0] == 1 and fe.index[-1] == 43  # required_lags(5, 43) = 45
+    assert abs(sel.delay_ - 30) < 1.0
+    X3, y3 = lagged_windows(mg30[:400], 3)
+    small = DelaySelectorCV()
+    with pytest.warns(NoDipWarning, match="only 2 delay"):
+        small.fit(X3, y3)
+    assert list(small.forecast_error_.columns) == [2, 3]
+    assert list(small.forecast_error_.index) == [1, 2]
+
+
+def test_degenerate_inputs_raise(mg30):
+    X, y = lagged_windows(mg30[:400], 12)
+    for rows in (3, 20, 40):
+        with pytest.raises(ValueError, match=rf"n_neighbors=30 but X has {rows} rows"):
+            DelaySelectorCV(LocalLinearDelayMap(30), m=2, tau=8).fit(X[:rows], y[:rows])
+    with pytest.raises(ValueError, match=r"X has 4 rows, too few for a delay scan"):
+        DelaySelectorCV(m=2, tau=8, theiler_window=1).fit(X[:4], y[:4])
+    with pytest.raises(ValueError, match=r"X is constant \(every value equals 2.0\)"):
+        DelaySelectorCV(m=2, tau=8).fit(np.full((300, 12), 2.0), np.full(300, 2.0))
+    with pytest.raises(ValueError, match=r"X has 1 feature\(s\)"):
+        DelaySelectorCV().fit(X[:, :1], y)
+
+
+# ----------------------------------------------------------------------------- refinement, tasks
+def test_refinement_adds_queries_at_the_dip_only(mg30):
+    kw = {"m": (2, 3), "tau": range(15, 46), "n_queries": 150, "random_state": 0}
+    fe = forecast_error_curve(mg30, **kw)
+    coarse, queries = fe.attrs["coarse"], fe.attrs["queries"]
+    n_rows = mg30.size - required_lags(3, 45)
+    for m in (2, 3):
+        refined = ~coarse[m]
+        assert refined.any() and coarse[m].any()
+        taus = refined.index[refined.to_numpy()]
+        assert taus.min() <= 30 <= taus.max() and taus.max() - taus.min() < 20
+        assert np.all(queries.loc[taus, m] > 150) and np.all(queries.loc[~refined, m] == 150)
+        assert queries[m].max() <= n_rows
+    dips = locate_dips(fe)
+    at_all = queries.max() == n_rows
+    assert np.all((dips["centre_se"] < 0.2) | at_all)
+    assert np.all(np.abs(dips["delay"] - 30) < 1.0)
+    flat = forecast_error_curve(mg30, refine=False, **kw)
+    assert flat.attrs["coarse"].all().all() and (flat.attrs["queries"] == 150).all().all()
+    # the coarse cells are the same computation in both runs
+    np.testing.assert_allclose(flat[coarse], fe[coarse], rtol=1e-12)
+
+
+def test_progress_bar_and_shared_arrays(mg30, capsys, monkeypatch):
+    import skdelay._scan as scan
+
+    kw = {"m": (2, 3), "tau": range(27, 34), "n_queries": 300, "random_state": 0}
+    ref = forecast_error_curve(mg30[:3000], **kw)
+    assert capsys.readouterr().err == ""  # quiet by default
+    monkeypatch.setattr(scan, "SHARE_BYTES", 0)  # every array through the memory maps
+    shared = forecast_error_curve(mg30[:3000], n_jobs=2, progress=True, **kw)
+    err = capsys.readouterr().err
+    assert "delay scan" in err and "task" in err
+    np.testing.assert_array_equal(shared.to_numpy(), ref.to_numpy())
+    # chunks of different sizes: numpy's std may round the last bit differently
+    np.testing.assert_allclose(shared.attrs["se"].to_numpy(), ref.attrs["se"].to_numpy(),
+                               rtol=1e-12)
