@@ -38,7 +38,7 @@ from ._dips import locate_dips
 from ._embedding import TwoWindowEmbedding, required_lags, two_window_columns
 from ._io import read_series
 from ._local_linear import LocalLinearDelayMap
-from ._selection import DelaySelectorCV, forecast_error_curve
+from ._selection import DelaySelectorCV, NoDipWarning, forecast_error_curve
 from ._spectrum import LyapunovSpectrum
 from ._windows import lagged_windows
 
@@ -60,6 +60,7 @@ __all__ = [
     "DelaySelectorCV",
     "LocalLinearDelayMap",
     "LyapunovSpectrum",
+    "NoDipWarning",
     "TwoWindowEmbedding",
     "analyze_series",
     "autocorrelation",
