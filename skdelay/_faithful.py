@@ -37,6 +37,7 @@ from ._embedding import required_lags
 from ._iterate import iterate
 from ._lyapunov import covering_spectrum
 from ._model import ModelOptions, fit_delay_model, resolve_model, self_query_index
+from ._neighbours import Standardiser
 from ._selection import forecast_error_curve
 from ._windows import lagged_windows
 
@@ -183,8 +184,9 @@ def noise_level(model, series, *, n_probe=5000, random_state=0):
     rows = np.sort(rng.choice(V.shape[0], size=min(n_probe, V.shape[0]), replace=False))
     qidx = self_query_index(mdl.regressor, V)
     A, b = mdl.regressor.local_maps(V[rows], query_index=None if qidx is None else qidx[rows])
-    r = y[rows] - (b + np.einsum("np,np->n", A, V[rows]))
-    return float(np.sqrt(np.mean(r ** 2) / (1.0 + np.mean(np.sum(A ** 2, axis=1)))))
+    unit = Standardiser.fit(y).scale  # squares of data at 1e-300 underflow
+    r = (y[rows] - (b + np.einsum("np,np->n", A, V[rows]))) / unit
+    return float(np.sqrt(np.mean(r ** 2) / (1.0 + np.mean(np.sum(A ** 2, axis=1))))) * unit
 
 
 # ----------------------------------------------------------------------------- distances
@@ -357,6 +359,9 @@ def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_mi
     ([1, 2, 3], True)
     """
     s = check_series(series, name="series", min_length=100)
+    # models, runs and spectra are scale free; the distances and noise estimates square
+    # the data, so they work on exactly rescaled values (data at 1e-300 would underflow)
+    unit = Standardiser.fit(s).scale
     m_max = check_positive_int(m_max, name="m_max")
     m_min = check_positive_int(m_min, name="m_min", maximum=m_max)
     n_runs = check_positive_int(n_runs, name="n_runs")
@@ -385,14 +390,15 @@ def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_mi
                  else dict.fromkeys(m_values, max_doublings))
 
     seed = int(rng.randint(2**31))
-    segs = _segments(s, length, MAX_SEGMENTS)
+    s_units = s / unit
+    segs = _segments(s_units, length, MAX_SEGMENTS)
     f_max = _spectrum_cutoff(segs[0], sample_dt)
     reference, bands = _reference_bands(segs, sample_dt=sample_dt, f_max=f_max, chi_m=chi_m,
                              chi_tau=chi_tau, seed=seed)
     window = max(2 * max(taus.values()), 200)
     models = {m: fit_delay_model(s, m, taus[m], model) for m in m_values}
     # the runs are observed like the data: the best model's residuals bound the noise
-    noise = min(noise_level(models[m], s, random_state=seed) for m in m_values)
+    noise = min(noise_level(models[m], s, random_state=seed) for m in m_values)  # data units
     obs_rng = np.random.default_rng(seed)
     rows, runs, spectra = {}, {}, {}
     say = progress or (lambda _msg: None)
@@ -411,13 +417,14 @@ def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_mi
                 row["status"] = (f"not faithful: the run left the data's support after "
                                  f"{run.size} of {length} steps")
                 break
-            collapse = collapse_step(run, s, window=window, noise=noise)
+            collapse = collapse_step(run / unit, s_units, window=window, noise=noise / unit)
             if collapse is not None:
                 row["collapsed_at"] = collapse[0]
                 row["status"] = f"not faithful: collapsed onto a {collapse[1]} at step {collapse[0]}"
                 break
         if not row["status"]:
-            observed = [run + noise * obs_rng.standard_normal(run.size) for run in runs[m]]
+            observed = [(run + noise * obs_rng.standard_normal(run.size)) / unit
+                        for run in runs[m]]
             row.update(_run_distances(observed, segs, sample_dt=sample_dt, f_max=f_max,
                                       chi_m=chi_m, chi_tau=chi_tau, seed=seed))
         k = min(dim, 30) if n_exp[m] is None else min(dim, int(n_exp[m]))

@@ -22,6 +22,7 @@ import math
 import numpy as np
 
 from ._checks import check_series
+from ._neighbours import Standardiser
 
 __all__ = ["INCREMENT_TO_NOISE", "MAX_STEP", "noise_and_increments", "sampling_step"]
 
@@ -59,7 +60,9 @@ def noise_and_increments(series, max_step=MAX_STEP):
     >>> round(noise, 3), bool(inc[0] < noise < inc[7])
     (0.01, True)
     """
-    s = check_series(series, name="series", min_length=8 * max_step)
+    raw = check_series(series, name="series", min_length=8 * max_step)
+    scale = Standardiser.fit(raw).scale  # exact power of two: no under- or overflow below
+    s = raw / scale
     steps = np.arange(1, max_step + 1)
     d = np.array([np.var(s[h:] - s[:-h]) for h in steps])
     k2 = steps[:_FIT_LAGS].astype(float) ** 2
@@ -71,7 +74,7 @@ def noise_and_increments(series, max_step=MAX_STEP):
         intercept = 0.0
     noise = math.sqrt(intercept / 2.0)
     increments = np.sqrt(np.maximum(d - 2 * noise ** 2, 0.0))
-    return noise, steps, increments
+    return noise * scale, steps, increments * scale
 
 
 def sampling_step(series, *, max_step=MAX_STEP):

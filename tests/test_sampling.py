@@ -80,3 +80,15 @@ def test_fractional_or_non_integer_m_is_refused(m):
     x = MackeyGlass(tau=17.0).simulate(3000, random_state=0)
     with pytest.raises(ValueError, match="whole window lengths"):
         analyze_series(x, m=m, tau_min=8, tau_max=30, quick=True)
+
+
+@pytest.mark.parametrize("scale", [1e-300, 1e300])
+def test_analysis_at_extreme_scale_equals_unit_scale(scale):
+    x = measure(MackeyGlass(tau=17.0).simulate(12_000, random_state=0), noise=0.005,
+                random_state=1)
+    ref = analyze_series(x, m=(2, 3), tau_min=8, tau_max=30, quick=True).summary_row()
+    row = analyze_series(x * scale, m=(2, 3), tau_min=8, tau_max=30, quick=True).summary_row()
+    for key in ("delay", "N", "minimal_m"):
+        assert row[key] == ref[key], key
+    for key in ("delay_error", "lambda_max", "D_KY", "h_KS"):
+        assert row[key] == pytest.approx(ref[key], rel=1e-6), key
