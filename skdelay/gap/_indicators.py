@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal
 
-from ._signature import zscore
+from ._signature import mean_std, zscore
 
 #: z-scores are capped at this value so that one bin cannot dominate a gap.
 Z_CAP = 30.0
@@ -47,8 +47,7 @@ class Indicator:
     def setup(self, real, sims, sample_dt, delay_samples):
         """Fix the binning from the real series and the clean simulated runs."""
         self.sample_dt = float(sample_dt)
-        self.real_mean = float(np.mean(real))
-        self.real_std = float(np.std(real))
+        self.real_mean, self.real_std = mean_std(real)
 
     def profile(self, z, blocks=False):
         """``(features, block_features or None)`` of a z-scored series."""
@@ -255,6 +254,43 @@ class Segment(Indicator):
         return [s for s in self.stats for _ in range(self.n_seg - 1)]
 
 
+class SpectralLines(Indicator):
+    """Per spectral line found in the real record (:func:`find_lines`): log10 of the
+    multitaper power at the line over the local continuum.
+
+    Only set up when the real record has lines the simulator lacks; its bins
+    are those lines, so a hum of a few cycles per record (invisible to the
+    Welch spectrum) enters the gap, the fits and the localisation table.
+    """
+
+    name = "spectral_line"
+    feature = "line power over the local continuum (log10)"
+    unit = "cycles per time unit"
+
+    def __init__(self, lines):
+        self.lines = list(lines)
+
+    def setup(self, real, sims, sample_dt, delay_samples):
+        from ._lines import LOG_VAR
+
+        super().setup(real, sims, sample_dt, delay_samples)
+        self.n_ref = len(real)
+        # a ratio of two multitaper estimates: twice the variance of one log power
+        self.var_floor = 2.0 * LOG_VAR
+
+    def profile(self, z, blocks=False):
+        from ._lines import line_feature
+
+        n = min(z.size, self.n_ref)
+        return np.array([line_feature(z[:n], line.frequency, self.sample_dt, self.n_ref)
+                         for line in self.lines]), None
+
+    def bounds(self):
+        f = np.array([line.frequency for line in self.lines])
+        w = np.array([line.half_width for line in self.lines])
+        return f - w, f + w
+
+
 class Levels(Indicator):
     """log10 of the fraction of distinct values (ADC resolution)."""
 
@@ -422,10 +458,11 @@ def profiles(indicators, runs, blocks=False):
     return out
 
 
-def make_indicators(real, sims, sample_dt, delay_samples):
+def make_indicators(real, sims, sample_dt, delay_samples, lines=()):
     """Set-up instances of every indicator, keyed by name (fast ones first).
 
-    ``cross_prediction`` needs the delay (``delay_samples``) and is left out without it.
+    ``cross_prediction`` needs the delay (``delay_samples``) and is left out
+    without it; ``spectral_line`` is set up only when ``lines`` were found.
     """
     out = {}
     for cls in FAST + FULL:
@@ -434,6 +471,10 @@ def make_indicators(real, sims, sample_dt, delay_samples):
         ind = cls()
         ind.setup(real, sims, sample_dt, delay_samples)
         out[ind.name] = ind
+        if cls is Spectrum and lines:
+            ind = SpectralLines(lines)
+            ind.setup(real, sims, sample_dt, delay_samples)
+            out[ind.name] = ind
     return out
 
 

@@ -15,31 +15,41 @@ import numpy as np
 from joblib import Parallel, delayed
 
 from .._checks import check_random_state
+from ._effects import EffectFailed, SimulationFailed, call_hook
 from ._indicators import ensemble_stats, indicator_gap, make_indicators, profiles, zscores
+from ._lines import find_lines
 from ._signature import zscore
 
-
-class SimulationFailed(RuntimeError):
-    """The simulator (or an effect) failed, diverged or returned unusable data."""
+__all__ = ["Evaluation", "GapProblem", "SimulationFailed", "run_simulator"]
 
 
 def run_simulator(simulator, n, sample_dt, seed, overrides):
     """``simulator.simulate`` with every failure turned into :class:`SimulationFailed`."""
+    what = f"simulate({_kw(overrides)})"
     try:
         x = simulator.simulate(n, sample_dt=sample_dt, random_state=int(seed), **overrides)
-    except Exception as exc:  # noqa: BLE001 - any simulator error fails this candidate only
-        raise SimulationFailed(f"simulate({_kw(overrides)}) failed: {type(exc).__name__}: {exc}")
-    x = np.asarray(x, dtype=float).reshape(-1)
-    return _check_run(x, n, f"simulate({_kw(overrides)})")
+        # converting the output is still user territory (a list of strings, a ragged list)
+        x = np.asarray(x, dtype=float)
+    except Exception as exc:  # boundary of user code: fails this candidate only
+        raise SimulationFailed(f"{what} failed: {type(exc).__name__}: {exc}") from exc
+    return check_run(x, n, what, SimulationFailed)
 
 
-def _check_run(x, n, what):
+def check_run(x, n, what, error=SimulationFailed):
+    """``x`` if it is a finite, non-constant 1-D series of at least ``n`` samples, else raise.
+
+    A 2-D output such as ``(n, 2)`` (two variables) is refused rather than
+    flattened: flattening would interleave the variables into a nonsense series.
+    """
+    if x.ndim != 1:
+        raise error(f"{what} returned an array of shape {x.shape}; a scalar series of shape "
+                    f"(n,) is needed (select the observed variable).")
     if x.size < n:
-        raise SimulationFailed(f"{what} returned {x.size} samples instead of {n}.")
+        raise error(f"{what} returned {x.size} samples instead of {n}.")
     if not np.all(np.isfinite(x)):
-        raise SimulationFailed(f"{what} diverged (non-finite values).")
+        raise error(f"{what} returned non-finite values (NaN or inf: diverged?).")
     if np.ptp(x) == 0:
-        raise SimulationFailed(f"{what} returned a constant series (dead dynamics).")
+        raise error(f"{what} returned a constant series (dead dynamics).")
     return x
 
 
@@ -87,11 +97,14 @@ class GapProblem:
     random_state : int, RandomState or None
     n_jobs : int or None
         joblib workers for the clean ensemble.
+    time_unit : str or None
+        The simulator's time unit (for reports in Hz); None: unknown.
     """
 
     def __init__(self, real, simulator, *, sample_dt=1.0, n_sims=6, search_sims=2,
-                 search_length=10_000, random_state=None, n_jobs=None):
+                 search_length=10_000, random_state=None, n_jobs=None, time_unit=None):
         self.real = real
+        self.time_unit = time_unit
         self.simulator = simulator
         self.sample_dt = float(sample_dt)
         self.n_samples = n = len(real)
@@ -106,7 +119,10 @@ class GapProblem:
             delayed(run_simulator)(simulator, n, self.sample_dt, s, {}) for s in self.sim_seeds
         )
         self.base = runs
-        self.indicators = make_indicators(real, runs, self.sample_dt, self.delay_samples)
+        # lines anywhere from a few cycles per record to Nyquist (a 50 Hz hum at 1 MHz)
+        self.lines = find_lines(real, runs, self.sample_dt)
+        self.indicators = make_indicators(real, runs, self.sample_dt, self.delay_samples,
+                                          self.lines)
         self.real_z = zscore(real)
         self.real_features = {k: ind.profile(self.real_z, database=zscore(runs[0]))[0]
                               if ind.paired else ind.profile(self.real_z)[0]
@@ -131,7 +147,7 @@ class GapProblem:
                           key=lambda item: item[0].stage)
         overrides = {}
         for eff, params in sim_part:
-            overrides.update(eff.overrides(params, self.simulator))
+            overrides.update(call_hook(eff, "overrides", params, self.simulator))
         if overrides:
             if tier == "fast":
                 n, seeds = self.search_length, self.sim_seeds[: self.search_sims]
@@ -144,9 +160,10 @@ class GapProblem:
         for j, x in enumerate(runs):
             n_run = x.size
             for eff, params in obs_part:
-                x = np.asarray(eff.apply(x, params, sample_dt=self.sample_dt,
-                                         random_state=self._effect_seed(j, eff.name)), dtype=float)
-                _check_run(x, 16, f"effect {eff.name!r} with {params}")
+                y = call_hook(eff, "apply", x, params, sample_dt=self.sample_dt,
+                              random_state=self._effect_seed(j, eff.name))
+                x = check_run(np.asarray(y, dtype=float), 16,
+                              f"effect {eff.name!r}.apply with {params}", EffectFailed)
             out.append(x[:n_run])  # never longer than the run (a slower time base stretches it)
         return out
 
@@ -189,13 +206,16 @@ class GapProblem:
         """Gap of each clean run against the others (leave-one-out): the no-gap distribution."""
         k_runs = len(self.base)
         out = []
+        self.null_by_indicator = {k: [] for k in self.base_features}
         for j in range(k_runs):
             total = 0.0
             for k, (f, blocks) in self.base_features.items():
                 others = np.delete(f, j, axis=0)
                 ob = None if blocks is None else np.delete(blocks, j, axis=0)
                 mean, var = _spread(others, ensemble_stats(others, self.indicators[k], ob)[1])
-                total += indicator_gap(zscores(f[j], mean, var, others.shape[0]))
+                gap = indicator_gap(zscores(f[j], mean, var, others.shape[0]))
+                self.null_by_indicator[k].append(gap)
+                total += gap
             out.append(total)
         return np.array(out)
 

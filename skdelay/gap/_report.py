@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 
 from ._effects import EFFECTS, _fmt
+from ._signature import mean_std
 
 _PANELS = ("spectrum", "histogram", "autocorrelation", "forecast_error", "segment")
 
@@ -27,7 +28,7 @@ class GapReport:
         One row per candidate, best first: ``effect``, ``params`` (fitted
         values), ``gap_before``, ``gap_after``, ``shrink``
         (``1 - gap_after / gap_before``), ``status`` (``"ok"`` or
-        ``"failed: ..."``), ``target``, ``description`` (fitted parameters in
+        ``"failed"``), ``reason`` (why it failed), ``target``, ``description`` (fitted parameters in
         physical units), ``n_evals``, ``seconds``.
     where : pandas.DataFrame
         Localised discrepancies, largest first: ``indicator``, ``feature``,
@@ -86,7 +87,7 @@ class GapReport:
         gap_after = float(after.gap) if after is not None else gap_before
         sim = problem.simulator
         info = {"n_samples": problem.n_samples, "sample_dt": problem.sample_dt,
-                "real_mean": float(np.mean(problem.real)), "real_std": float(np.std(problem.real)),
+                "real_mean": mean_std(problem.real)[0], "real_std": mean_std(problem.real)[1],
                 "simulator": type(sim).__name__, "simulator_params": dict(sim.params),
                 "n_sims": len(problem.base), "dip_real": problem.dip_real,
                 "dip_sim": problem.dip_sim}

@@ -13,15 +13,14 @@ from typing import ClassVar
 
 import numpy as np
 
-from ._effects import Effect, _fmt, register_effect
-from ._problem import SimulationFailed
+from ._effects import Effect, NotApplicable, SimulationFailed, _fmt, register_effect
 from ._signature import ensemble_psd, welch_psd
 
 
 def _param(simulator, key):
     params = getattr(simulator, "params", None) or {}
     if key not in params:
-        raise ValueError(
+        raise NotApplicable(
             f"the simulator has no parameter {key!r} (its params: {sorted(params)}); this "
             "effect does not apply to it."
         )
@@ -65,6 +64,8 @@ class DynamicalNoise(Effect):
     log_params = ("dynamical_noise",)
     units: ClassVar[dict] = {"dynamical_noise": "simulator noise intensity"}
     description = "dynamical noise (inside the feedback loop)"
+    signature: ClassVar[tuple] = ("spectrum", "increments", "autocorrelation", "forecast_error",
+                                  "cross_prediction")
 
     def guess(self, real, sim, sample_dt):
         n = len(real)
@@ -146,6 +147,7 @@ class DelayMismatch(Effect):
     bounds: ClassVar[dict] = {"tau": (1e-9, 1e12)}
     units: ClassVar[dict] = {"tau": "time units"}
     description = "delay mismatch"
+    signature: ClassVar[tuple] = ("forecast_error", "autocorrelation", "spectrum", "cross_prediction")
 
     def check(self, params, simulator=None):
         if simulator is not None:
@@ -205,6 +207,7 @@ class ParameterDrift(Effect):
     bounds: ClassVar[dict] = {"start": (-np.inf, np.inf), "end": (-np.inf, np.inf)}
     units: ClassVar[dict] = {"start": "parameter units", "end": "parameter units"}
     description = "parameter drift / mismatch"
+    signature: ClassVar[tuple] = ()  # a parameter can move any indicator
     #: relative end values tried for every parameter in the coarse scan
     scan = (-0.12, -0.05, -0.02, 0.02, 0.05, 0.12)
     #: further relative changes tried, outward, while the gap keeps falling at the scan's
@@ -222,7 +225,7 @@ class ParameterDrift(Effect):
                if k not in self.exclude and isinstance(v, numbers.Real)
                and not isinstance(v, bool) and np.isfinite(v) and v != 0]
         if not out:
-            raise ValueError(
+            raise NotApplicable(
                 "the simulator exposes no numeric parameter besides tau to drift; "
                 "parameter_drift does not apply."
             )
@@ -254,7 +257,7 @@ class ParameterDrift(Effect):
                     best = (gap, key, rel)
         _, key, rel = best
         if key is None:
-            raise ValueError("every drift tried made the simulator fail.")
+            raise SimulationFailed("every drift tried made the simulator fail.")
         v0 = _param(problem.simulator, key)
         pts = {r: g for (k, r), g in scanned.items() if k == key}
         grid = sorted(self.scan)

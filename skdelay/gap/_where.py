@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from ._units import frequency_unit, time_unit_name
+
 #: a bin is discrepant when |z| exceeds this (z is against the sim-vs-sim spread)
 Z_WHERE = 4.0
 
@@ -42,14 +44,18 @@ def localise(problem, evaluation=None):
     for name, z in ev.z.items():
         ind = problem.indicators[name]
         lo, hi = ind.bounds()
+        factor, unit = user_units(problem, ind.unit)
+        lo, hi = lo * factor, hi * factor
         labels = ind.labels()
         real = problem.real_features[name]
         for a, b in _runs(np.abs(z) >= Z_WHERE, labels):
             seg = z[a:b]
             k = a + int(np.argmax(np.abs(seg)))
             rows.append({
-                "indicator": name, "feature": labels[k], "low": float(lo[a]),
-                "high": float(hi[b - 1]), "peak": _centre(lo[k], hi[k]), "unit": ind.unit,
+                "indicator": "spectrum" if name == "spectral_line" else name,
+                "feature": "spectral line" if name == "spectral_line" else labels[k],
+                "low": float(lo[a]),
+                "high": float(hi[b - 1]), "peak": _centre(lo[k], hi[k]), "unit": unit,
                 "excess": float(np.sum(np.square(seg) - 1.0) / z.size), "z": float(z[k]),
                 "real_value": float(real[k]), "sim_value": float(ev.mean[name][k]),
                 "sim_std": float(ev.std[name][k]), "note": _note(name, z[k], labels[k]),
@@ -57,6 +63,20 @@ def localise(problem, evaluation=None):
     rows.extend(_dip_rows(problem, ev))
     df = pd.DataFrame(rows, columns=COLUMNS)
     return df.sort_values("excess", ascending=False, kind="stable").reset_index(drop=True)
+
+
+def user_units(problem, unit):
+    """``(factor, unit)`` that turn an indicator's bounds into the user's units.
+
+    With a known time unit frequencies are given in Hz and times / lags in
+    that unit; otherwise in cycles per time unit and time units.
+    """
+    time_unit = getattr(problem, "time_unit", None)
+    if unit == "cycles per time unit":
+        return frequency_unit(time_unit)
+    if unit.startswith("time units"):
+        return 1.0, unit.replace("time units", time_unit_name(time_unit), 1)
+    return 1.0, unit
 
 
 def _centre(lo, hi):
@@ -68,6 +88,9 @@ def _centre(lo, hi):
 
 
 def _note(name, z, label):
+    if name == "spectral_line":
+        return ("a spectral line in the real data that the simulator lacks (harmonic F-test "
+                "and the ensemble's continuum): periodic interference such as mains hum")
     word = "higher" if z > 0 else "lower"
     return f"real {label} {word} than simulated"
 
