@@ -108,6 +108,109 @@ def significance(problem):
             "significant": bool(gap > threshold or max_z > Z_LOCAL or lines)}
 
 
+#: a timebase factor agrees with the data when the dip and the spectral features move by it
+#: within this (relative) tolerance or three of their standard errors: a 1.08 factor on
+#: Mackey-Glass moves the dip by 1.3 samples, whose centre is good to ~0.2 samples (1 %)
+TB_TOL = 0.02
+#: a fitted delay agrees with the data's dip when the shifts differ by at most this many
+#: samples or DIP_Z of the dips' combined standard errors (the fit scans +-1.5 samples)
+DELAY_TOL = 1.0
+
+
+def _peak_frequency(x, sample_dt, nperseg=4096):
+    """Frequency of the highest spectral peak (parabolic interpolation of the log power)."""
+    from scipy import signal
+
+    from ._signature import zscore
+
+    nper = int(min(nperseg, max(64, len(x) // 4)))
+    f, p = signal.welch(zscore(x), fs=1.0 / sample_dt, nperseg=nper)
+    k = int(np.argmax(p[1:])) + 1
+    if 0 < k < p.size - 1:
+        a, b, c = np.log(p[k - 1:k + 2] + 1e-300)
+        den = a - 2 * b + c
+        if den < 0:
+            return float(f[k] + 0.5 * (a - c) / den * (f[1] - f[0])), float(f[1] - f[0])
+    return float(f[k]), float(f[1] - f[0])
+
+
+def consistency(problem, chain):
+    """Do the fitted parameters agree with independent evidence in the real data?
+
+    Returns a list of ``(effect, agrees, sentence)``.  A delay mismatch must
+    move the model's forecast-error dip to where the real data's own dip lies
+    (:func:`skdelay._dips.locate_dip`); a timebase factor must move the dip,
+    the spectral centroid and the main spectral peak by the same factor.
+    Other effects have no independent check here (their signatures are what
+    the fits used).
+    """
+    from ._signature import centroid
+    from ._where import DIP_Z, dip_comparable
+
+    out = []
+    dt = problem.sample_dt
+    for eff, params in chain:
+        if eff.name == "delay_mismatch" and problem.dip is not None:
+            tau0 = float(problem.simulator.params["tau"])
+            fit = (float(params["tau"]) - tau0) / dt
+            seen = problem.dip_real - problem.dip_sim
+            tol = max(DELAY_TOL, DIP_Z * problem.dip_spread)
+            comparable = dip_comparable(problem)
+            ok = bool(comparable and abs(fit - seen) <= tol)
+            out.append((eff.name, ok,
+                        f"the fitted delay moves the dip by {fit:+.2f} samples, the real data's "
+                        f"dip lies {seen:+.2f} samples from the model's (tolerance {tol:.2f})"
+                        + ("" if comparable else "; but the real data's dip is too shallow "
+                           "to place against the model's")))
+        elif eff.name == "timebase_mismatch":
+            factor = float(params["factor"])
+            checks = []
+            if dip_comparable(problem):
+                ratio = problem.dip_sim / problem.dip_real
+                se = ratio * problem.dip_spread / problem.dip_real
+                checks.append(("forecast-error dip", ratio, max(TB_TOL, 3 * se)))
+            n = problem.n_samples
+            c_sim = np.mean([centroid(x[:n], dt) for x in problem.base])
+            checks.append(("spectral centroid", centroid(problem.real, dt) / c_sim, TB_TOL))
+            f_real, df = _peak_frequency(problem.real, dt)
+            f_sim = np.mean([_peak_frequency(x[:n], dt)[0] for x in problem.base])
+            checks.append(("main spectral peak", f_real / f_sim,
+                           max(TB_TOL, 0.5 * df / max(f_sim, 1e-300))))
+            bad = [(name, r, tol) for name, r, tol in checks if abs(r - factor) > tol]
+            text = "; ".join(f"{name} moved by x{r:.3f}" for name, r, _ in checks)
+            out.append((eff.name, not bad,
+                        f"fitted factor {factor:.3f}; {text}"
+                        + (f" (disagree: {', '.join(b[0] for b in bad)})" if bad else "")))
+    return out
+
+
+def explanation(problem, sig, best, chain, after):
+    """``(status, reasons)``: is the gap fully explained by the fitted chain of effects?
+
+    ``"fully"`` only when, with the effects added, no indicator stays
+    significantly off (:func:`off_indicators`), the real data show no forecast
+    -error dip that the simulator lacks, and every parameter agrees with the
+    independent evidence (:func:`consistency`); ``"partly"`` otherwise when an
+    effect removes at least ``MIN_SHRINK`` of the gap; ``"not explained"``
+    when none does; ``"no gap"`` when the data are indistinguishable.
+    """
+    if not sig["significant"]:
+        return "no gap", []
+    if best is None:
+        return "not explained", ["no candidate effect removes enough of the gap"]
+    reasons = []
+    off = off_indicators(problem, after)
+    for name, (gap, zmax) in sorted(off.items(), key=lambda item: -item[1][0]):
+        reasons.append(f"{name} still off (gap {gap:.3g}, largest |z| {zmax:.1f})")
+    for dip in problem.second_dips:
+        reasons.append(f"a second forecast-error dip at {dip.centre * problem.sample_dt:.4g} "
+                       "time units that the simulator lacks")
+    for _, ok, text in consistency(problem, chain):
+        if not ok:
+            reasons.append(text)
+    return ("partly" if reasons else "fully"), reasons
+
+
 def _residual_left(problem, after, threshold, gap_before):
     """Is a second effect worth fitting on top of the best one?"""
     return bool(off_indicators(problem, after)
@@ -263,5 +366,8 @@ def diagnose_gap(real, simulator, *, sample_dt=1.0, effects=None, random_state=N
                         "table": second}
             chain = chain + [(by_name[s["effect"]], dict(s["params"]))]
             after = second_evals[0]
+    status, reasons = explanation(problem, sig, best, chain, after)
     return GapReport.from_problem(problem, table=table, where=where, significance=sig,
-                                  best_effect=best, combined=combined, after=after)
+                                  best_effect=best, combined=combined, after=after,
+                                  explained=status, reasons=reasons,
+                                  checks=consistency(problem, chain))

@@ -215,11 +215,12 @@ class Effect:
     def check(self, params, simulator=None):
         """Raise :class:`NotApplicable` if the effect cannot act with ``simulator``."""
 
-    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0):
+    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0, time_unit=None):
         """One phrase with the fitted parameters in physical units.
 
         ``scale`` and ``offset`` convert the clean signal's standard units into
-        the units of the real data (``value_real = offset + scale * z``).
+        the units of the real data (``value_real = offset + scale * z``);
+        ``time_unit`` (None: unknown) lets frequencies be named in Hz.
         """
         parts = []
         for key, value in params.items():

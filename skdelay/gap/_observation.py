@@ -121,7 +121,7 @@ class Quantization(Effect):
         q = (np.round(z / step - phase) + phase) * step
         return mu + sd * q
 
-    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0):
+    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0, time_unit=None):
         step = params["step"] * scale
         return f"ADC step = {_fmt(step)} (units of real data) = {_fmt(params['step'])} x signal std"
 
@@ -287,7 +287,7 @@ class Clipping(Effect):
         mu, sd = x.mean(), x.std()
         return np.clip(x, mu + params["low"] * sd, mu + params["high"] * sd)
 
-    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0):
+    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0, time_unit=None):
         sides = []
         for key, word in (("high", "above"), ("low", "below")):
             if np.isfinite(params[key]):
@@ -369,7 +369,7 @@ class Outliers(Effect):
         return {"rate": (max(r / 3, 1e-5), min(r * 3, 0.1)),
                 "size": (max(s / 2, 1.0), min(s * 2, 50.0))}
 
-    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0):
+    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0, time_unit=None):
         return (f"spikes at a rate of {_fmt(params['rate'])} per sample, typical height "
                 f"{_fmt(params['size'] * scale)} (units of real data) = {_fmt(params['size'])} "
                 "x signal std")

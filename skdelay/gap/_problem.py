@@ -15,7 +15,7 @@ import numpy as np
 from joblib import Parallel, delayed
 
 from .._checks import check_random_state
-from ._effects import EffectFailed, SimulationFailed, call_hook
+from ._effects import CandidateFailed, EffectFailed, SimulationFailed, call_hook
 from ._indicators import ensemble_stats, indicator_gap, make_indicators, profiles, zscores
 from ._lines import find_lines
 from ._signature import zscore
@@ -130,11 +130,44 @@ class GapProblem:
         self.base_features = profiles(self.indicators, runs, blocks=True)
         self.base_var = {k: ensemble_stats(f, self.indicators[k], b)[1]
                          for k, (f, b) in self.base_features.items()}
-        fe = self.indicators["forecast_error"]
-        self.dip_real = fe.dip(self.real_features["forecast_error"])
-        self.dip_sim = float(np.mean([fe.dip(f) for f in self.base_features["forecast_error"][0]]))
+        self._scan_dips()
         self.before = self._compare({k: f for k, (f, _) in self.base_features.items()}, runs)
         self.null_gaps = self._null_gaps()
+
+    #: simulator runs whose forecast-error curves give the model's dip and its spread
+    DIP_RUNS = 2
+
+    def _scan_dips(self):
+        """Forecast-error dips of the real data and of the clean runs (step 1 near the dips).
+
+        Sets ``dip`` (the real data's :class:`~skdelay._dips.Dip`), ``sim_dips``,
+        ``dip_real`` / ``dip_sim`` (centres, samples), ``dip_spread`` (the
+        centre's uncertainty: bootstrap standard errors and the runs' scatter),
+        ``dip_curves`` (taus, real, mean simulated) and ``second_dips`` (dips of
+        the real data away from the main one that the simulator lacks).
+        """
+        from .._dips import locate_dip
+        from ._indicators import fe_scan, other_dips
+
+        if not self.delay_samples:
+            self.dip = None
+            self.sim_dips, self.second_dips, self.dip_curves = [], [], None
+            self.dip_real = self.dip_sim = self.dip_spread = None
+            return
+        from ._indicators import _fe_curve
+
+        taus, real_curve = fe_scan(self.real, self.delay_samples)
+        sim_curves = [_fe_curve(x, taus) for x in self.base[: self.DIP_RUNS]]
+        self.dip = locate_dip(taus, real_curve)
+        self.sim_dips = [locate_dip(taus, c) for c in sim_curves]
+        centres = np.array([d.centre for d in self.sim_dips])
+        scatter = float(centres.std(ddof=1)) if centres.size > 1 else 0.0
+        se = np.hypot(self.dip.centre_se, np.mean([d.centre_se for d in self.sim_dips]))
+        self.dip_real, self.dip_sim = self.dip.centre, float(centres.mean())
+        self.dip_spread = float(np.hypot(se, scatter))
+        mean_sim = np.mean(sim_curves, axis=0)
+        self.dip_curves = (taus, real_curve, mean_sim)
+        self.second_dips = other_dips(taus, real_curve, self.dip, reference=mean_sim)
 
     # ----------------------------------------------------------------- runs
     def _effect_seed(self, j, name):
@@ -218,6 +251,19 @@ class GapProblem:
                 total += gap
             out.append(total)
         return np.array(out)
+
+    def line_contribution(self):
+        """Gap removed by subtracting the strongest spectral line (its signature estimate)."""
+        if not self.lines:
+            return 0.0
+        from ._effects import get_effect
+
+        hum = get_effect("periodic_interference")
+        try:
+            after = self.evaluate([(hum, hum.initial(self))], "full").gap
+        except CandidateFailed:
+            return 0.0
+        return float(max(self.before.gap - after, 0.0))
 
     def fast_gap_before(self):
         """Gap before any effect on the fast indicators only (the search objective's scale)."""

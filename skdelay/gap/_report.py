@@ -53,6 +53,16 @@ class GapReport:
     profiles : dict of DataFrame
         Per indicator: bin bounds, ``real``, ``sim_mean``, ``sim_std`` and
         ``fitted_mean`` (simulator + best effect) — what :meth:`plot` draws.
+    explained : {"fully", "partly", "not explained", "no gap"}
+        ``"fully"`` only when, with the best effect (or combination) added, no
+        indicator stays significantly off, the real data have no forecast-error
+        dip the simulator lacks and the fitted parameters agree with the
+        independent evidence (``checks``); ``"partly"`` when an effect removes
+        part of the gap but not all of it.
+    reasons : list of str
+        Why the gap is not fully explained (what remains).
+    checks : list of (effect, bool, str)
+        The independent-evidence checks of the fitted parameters.
     """
 
     best_effect: str | None
@@ -66,9 +76,13 @@ class GapReport:
     residual_where: pd.DataFrame | None = None
     profiles: dict = field(default_factory=dict, repr=False)
     info: dict = field(default_factory=dict)
+    explained: str = "no gap"
+    reasons: list = field(default_factory=list)
+    checks: list = field(default_factory=list)
 
     @classmethod
-    def from_problem(cls, problem, *, table, where, significance, best_effect, combined, after):
+    def from_problem(cls, problem, *, table, where, significance, best_effect, combined, after,
+                     explained="no gap", reasons=(), checks=()):
         """Assemble the report from a solved :class:`GapProblem`."""
         from ._where import localise
 
@@ -87,15 +101,18 @@ class GapReport:
         gap_after = float(after.gap) if after is not None else gap_before
         sim = problem.simulator
         info = {"n_samples": problem.n_samples, "sample_dt": problem.sample_dt,
+                "time_unit": problem.time_unit,
                 "real_mean": mean_std(problem.real)[0], "real_std": mean_std(problem.real)[1],
                 "simulator": type(sim).__name__, "simulator_params": dict(sim.params),
                 "n_sims": len(problem.base), "dip_real": problem.dip_real,
-                "dip_sim": problem.dip_sim}
+                "dip_sim": problem.dip_sim, "dip_spread": problem.dip_spread,
+                "dip_curves": problem.dip_curves}
         return cls(best_effect=best_effect, effects=table, where=where, gap_before=gap_before,
                    gap_after=gap_after, shrink=1.0 - max(gap_after, 0.0) / gap_before
                    if gap_before > 0 else 0.0, significance=significance, combined=combined,
                    residual_where=localise(problem, after) if after is not None else None,
-                   profiles=profiles, info=info)
+                   profiles=profiles, info=info, explained=explained, reasons=list(reasons),
+                   checks=list(checks))
 
     # ---------------------------------------------------------------- text
     def _where_phrase(self, df, k=3):
@@ -109,7 +126,9 @@ class GapReport:
         """A paragraph for a lab book: where, which effect (fitted values, units), shrink, residual."""
         s = self.significance
         i = self.info
-        head = (f"Real data ({i['n_samples']} samples, sample_dt = {_fmt(i['sample_dt'])}) versus "
+        unit = f" {i['time_unit']}" if i.get("time_unit") else ""
+        head = (f"Real data ({i['n_samples']} samples, sample_dt = {_fmt(i['sample_dt'])}{unit}) "
+                "versus "
                 f"{i['simulator']} ({', '.join(f'{k}={_fmt(v)}' for k, v in i['simulator_params'].items())}; "
                 f"{i['n_sims']} runs): gap {self.gap_before:.3g} against a no-gap level of "
                 f"{s['null_median']:.2g} (runs among themselves; threshold {s['threshold']:.3g}).")
@@ -124,27 +143,45 @@ class GapReport:
             best = ok.iloc[0] if len(ok) else None
             text.append(
                 "No candidate effect explains the gap"
-                + (f" (best: {best['effect']}, removes {100 * best['shrink']:.0f}%)" if best is not None else "")
+                + (f" (best: {best['effect']}, removes {100 * best['shrink']:.0f}%)"
+                   if best is not None else "")
                 + "; the cause lies outside the effect library or in the model itself.")
+            if self.reasons[1:] or len(self.where):
+                text.append(self._remaining())
             return " ".join(text)
         row = self.effects.iloc[0]
         desc = EFFECTS[row["effect"]].description if row["effect"] in EFFECTS else row["effect"]
-        text.append(f"Best explanation: {row['effect']} ({desc}): {row['description']}. It removes "
-                    f"{100 * row['shrink']:.0f}% of the gap ({row['gap_before']:.3g} -> "
-                    f"{row['gap_after']:.3g}).")
+        names = [row["effect"]] + ([self.combined["effects"][1]] if self.combined else [])
+        if self.explained == "fully":
+            text.append(f"Best explanation: {row['effect']} ({desc}): {row['description']}. "
+                        f"It removes {100 * row['shrink']:.0f}% of the gap "
+                        f"({row['gap_before']:.3g} -> {row['gap_after']:.3g}).")
+        else:
+            text.append(f"Partly explained ({100 * self.shrink:.0f} %) by "
+                        f"{' + '.join(names)} ({row['description']}); the rest lies outside "
+                        "the effect library.")
         if len(ok) > 1:
             nxt = ok.iloc[1]
             text.append(f"Runner-up: {nxt['effect']} ({100 * nxt['shrink']:.0f}%).")
         if self.combined is not None:
             c = self.combined
             t = c["table"].iloc[0]
-            text.append(f"A second effect on top, {c['effects'][1]} ({t['description']}), brings the "
-                        f"gap to {c['gap_after']:.3g} ({100 * c['shrink']:.0f}% removed in total).")
+            text.append(f"A second effect on top, {c['effects'][1]} ({t['description']}), brings "
+                        f"the gap to {c['gap_after']:.3g} ({100 * c['shrink']:.0f}% removed in "
+                        "total).")
         resid = "within" if self.gap_after <= s["threshold"] else "above"
         text.append(f"Residual gap {self.gap_after:.3g}, {resid} the no-gap threshold.")
-        if resid == "above" and self.residual_where is not None and len(self.residual_where):
-            text.append("Remaining discrepancies: " + self._where_phrase(self.residual_where, 2) + ".")
+        if self.explained != "fully":
+            text.append(self._remaining())
         return " ".join(text)
+
+    def _remaining(self):
+        """What the effects leave unexplained: the reasons and the residual discrepancies."""
+        parts = list(self.reasons)
+        where = self.residual_where if self.residual_where is not None else self.where
+        if where is not None and len(where):
+            parts.append(self._where_phrase(where, 2))
+        return "What remains: " + "; ".join(parts) + "." if parts else ""
 
     def __str__(self):
         return self.summary()

@@ -29,7 +29,12 @@ def _param(simulator, key):
 
 def _vertex(points, centre):
     """Vertex of a least-squares parabola through the five points nearest ``centre``
-    (None unless convex with the vertex inside their span)."""
+    (None unless convex with the vertex inside their span).
+
+    This is the minimum of a fitted objective (the gap as a function of a
+    drift parameter, noisy because every evaluation re-runs the simulator),
+    not a forecast-error dip: dips go through :func:`skdelay._dips.locate_dip`.
+    """
     rs = np.array(sorted(points, key=lambda r: abs(r - centre))[:5])
     gs = np.array([points[r] for r in rs])
     ok = np.isfinite(gs)
@@ -155,22 +160,18 @@ class DelayMismatch(Effect):
 
     def initial(self, problem):
         """Move the model's delay by the shift between the forecast-error dips of the real
-        data and of a simulated run (wide scan around the model's delay)."""
-        from ._indicators import dip_position
-
+        data and of the clean runs (:func:`skdelay._dips.locate_dip`, step 1 near the dip)."""
         tau0 = _param(problem.simulator, "tau")
-        d0 = tau0 / problem.sample_dt
-        n = min(problem.n_samples, 10_000)
-        dip_real = dip_position(problem.real[:n], delay_samples=d0)
-        dip_sim = dip_position(problem.base[0][:n], delay_samples=d0)
-        shift = (dip_real - dip_sim) * problem.sample_dt
+        if problem.dip is None:
+            return self.guess(problem.real, np.array(problem.base), problem.sample_dt)
+        shift = (problem.dip_real - problem.dip_sim) * problem.sample_dt
         return {"tau": float(max(tau0 + shift, 2 * problem.sample_dt))}
 
     def guess(self, real, sim, sample_dt):
-        from ._indicators import dip_position
+        from ._indicators import series_dip
 
-        # the dip of the real data's forecast error is its delay (in samples)
-        return {"tau": float(dip_position(real) * sample_dt)}
+        # without the model's delay: the dip of the real data's forecast error is its delay
+        return {"tau": float(series_dip(real).centre * sample_dt)}
 
     def search_bounds(self, guess, context):
         dt = context.sample_dt
@@ -180,7 +181,7 @@ class DelayMismatch(Effect):
     def overrides(self, params, simulator):
         return {"tau": float(params["tau"])}
 
-    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0):
+    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0, time_unit=None):
         return f"delay tau = {_fmt(params['tau'])} time units ({_fmt(params['tau'] / sample_dt)} samples)"
 
 
@@ -331,7 +332,7 @@ class ParameterDrift(Effect):
         value = start if start == end else (start, end)
         return {params["parameter"]: value}
 
-    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0):
+    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0, time_unit=None):
         p, s, e = params["parameter"], params["start"], params["end"]
         if s == e:
             return f"{p} = {_fmt(s)} throughout the record (constant mismatch)"
