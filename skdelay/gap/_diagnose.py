@@ -93,7 +93,8 @@ def significance(problem):
     median gap of each simulator run against the others, leave-one-out) or
     when one bin is more than ``Z_LOCAL`` spreads off (a narrow discrepancy
     such as a spectral line), or when the record has a spectral line that the
-    simulator runs lack (:func:`skdelay.gap._lines.find_lines`).  Both were calibrated on no-effect controls
+    simulator runs lack (:func:`skdelay.gap._lines.find_lines`).  Both were calibrated on
+    no-effect controls
     (benchmarks/gap_withheld.py).
     """
     null = problem.null_gaps
@@ -196,10 +197,8 @@ def explanation(problem, sig, best, chain, after):
     """
     if not sig["significant"]:
         return "no gap", []
-    if best is None:
-        return "not explained", ["no candidate effect removes enough of the gap"]
-    reasons = []
-    off = off_indicators(problem, after)
+    reasons = [] if best is not None else ["no candidate effect removes enough of the gap"]
+    off = off_indicators(problem, after if after is not None else problem.before)
     for name, (gap, zmax) in sorted(off.items(), key=lambda item: -item[1][0]):
         reasons.append(f"{name} still off (gap {gap:.3g}, largest |z| {zmax:.1f})")
     for dip in problem.second_dips:
@@ -208,6 +207,8 @@ def explanation(problem, sig, best, chain, after):
     for _, ok, text in consistency(problem, chain):
         if not ok:
             reasons.append(text)
+    if best is None:
+        return "not explained", reasons
     return ("partly" if reasons else "fully"), reasons
 
 
@@ -218,13 +219,62 @@ def _residual_left(problem, after, threshold, gap_before):
                 or _max_z(after) > Z_LOCAL)
 
 
-def _table(results, gap_before, problem, by_name):
+#: records are cross-validated only when each half keeps MIN_SAMPLES samples
+MIN_CV_SAMPLES = 2 * MIN_SAMPLES
+
+
+def cross_validate(effects, parts, parallel, chain=()):
+    """Fit each effect on the first half of the record, score it on the second.
+
+    ``chain``: ``(effect, params fitted on the first half)`` already in place
+    (the best effect, for the second round).  Returns ``(gap_before,
+    {name: gap_after})`` on the held-out half (NaN where the candidate failed
+    there): a flexible effect that only fits the noise of the half it saw
+    removes little of the other half's gap.
+    """
+    fit_part, score_part = parts
+    h_fit, h_score = fit_part.n_samples, score_part.n_samples
+
+    def moved(eff, params):
+        return call_hook(eff, "transfer", params, h_fit, h_score)
+
+    score_chain = [(e, moved(e, p)) for e, p in chain]
+    before = score_part.evaluate(score_chain, "full").gap if chain else score_part.before.gap
+    fits = parallel(delayed(fit_effect)(e, fit_part, list(chain)) for e in effects)
+    out = {}
+    for eff, res in zip(effects, fits):
+        out[eff.name] = (np.nan, {})
+        if not res.ok:
+            continue
+        try:
+            gap = score_part.evaluate(score_chain + [(eff, moved(eff, res.params))], "full").gap
+        except CandidateFailed:  # the held-out half makes this candidate fail: no score
+            continue
+        out[eff.name] = (float(gap), res.params)
+    return float(before), out
+
+
+def _table(results, gap_before, problem, by_name, cv=None):
+    """Candidates table, best first.
+
+    With ``cv = (gap_before_heldout, {name: (gap_after_heldout, params)})`` the
+    ``shrink`` and ``gap_after`` columns are the cross-validated ones
+    (``gap_after = gap_before * (1 - shrink)`` on the whole record's scale);
+    the in-sample numbers stay as ``gap_after_fit`` / ``shrink_fit``.
+    """
     rows = []
     offset, scale = mean_std(problem.real)
     for r in results:
         eff = by_name[r.effect]
-        after = r.gap_after if r.ok else np.nan
-        shrink = 1.0 - max(after, 0.0) / gap_before if (r.ok and gap_before > 0) else np.nan
+        fit_after = r.gap_after if r.ok else np.nan
+        fit_shrink = (1.0 - max(fit_after, 0.0) / gap_before
+                      if (r.ok and gap_before > 0) else np.nan)
+        shrink, after, cv_before, cv_after = fit_shrink, fit_after, np.nan, np.nan
+        if cv is not None and r.ok:
+            cv_before, scores = cv
+            cv_after = scores.get(r.effect, (np.nan, {}))[0]
+            shrink = (1.0 - max(cv_after, 0.0) / cv_before if cv_before > 0 else np.nan)
+            after = gap_before * (1.0 - shrink)
         text = ""
         if r.ok:
             try:
@@ -237,17 +287,22 @@ def _table(results, gap_before, problem, by_name):
         rows.append({"effect": r.effect, "params": r.params, "gap_before": gap_before,
                      "gap_after": after, "shrink": shrink, "status": r.status,
                      "reason": r.reason, "target": r.target, "description": text,
+                     "gap_after_fit": fit_after, "shrink_fit": fit_shrink,
+                     "cv_gap_before": cv_before, "cv_gap_after": cv_after,
                      "n_evals": r.n_evals, "seconds": r.seconds, "_evaluation": r.evaluation})
     df = pd.DataFrame(rows)
-    df["_failed"] = df["status"] != "ok"
-    df = df.sort_values(["_failed", "gap_after"], kind="stable").drop(columns="_failed")
+    # a candidate that failed on the held-out half ranks by its in-sample gap, after the rest
+    df["_failed"] = (df["status"] != "ok").astype(int) + df["gap_after"].isna().astype(int)
+    df["_key"] = df["gap_after"].fillna(df["gap_after_fit"])
+    df = df.sort_values(["_failed", "_key"], kind="stable").drop(columns=["_failed", "_key"])
     df = df.reset_index(drop=True)
     evaluations = list(df.pop("_evaluation"))
     return df, evaluations
 
 
 def diagnose_gap(real, simulator, *, sample_dt=1.0, effects=None, random_state=None,
-                 n_jobs=None, n_sims=6, combine=True, verbose=0, time_unit=None):
+                 n_jobs=None, n_sims=6, combine=True, verbose=0, time_unit=None,
+                 cross_validated=True):
     """Diagnose the gap between measured data and a simulator.
 
     (1) *Where*: indicators (power spectrum, histogram, autocorrelation,
@@ -291,6 +346,12 @@ def diagnose_gap(real, simulator, *, sample_dt=1.0, effects=None, random_state=N
         Fit a second effect on top of the best one when a significant gap remains.
     verbose : int, default=0
         joblib verbosity.
+    cross_validated : bool, default=True
+        Score every candidate on the half of the record it was not fitted on
+        (first half fit, second half score; records of at least 4000
+        samples): ``effects.shrink`` and ``gap_after`` are then the
+        cross-validated numbers, so a flexible effect cannot win by fitting
+        the noise.  The reported parameters are fitted on the whole record.
     time_unit : {None, "s", "ms", "us", "ns", ...}, default=None
         The simulator's time unit (same as a unit given with ``sample_dt``);
         None: unknown, frequencies in cycles per time unit.
@@ -340,7 +401,12 @@ def diagnose_gap(real, simulator, *, sample_dt=1.0, effects=None, random_state=N
     parallel = Parallel(n_jobs=n_jobs, verbose=verbose)
     results = parallel(delayed(fit_effect)(e, problem) for e in candidates)
     by_name = {e.name: e for e in candidates}
-    table, evaluations = _table(results, gap_before, problem, by_name)
+    parts = problem.split() if (cross_validated and real.size >= MIN_CV_SAMPLES) else None
+    cv = None
+    if parts is not None and sig["significant"]:
+        ok = [by_name[r.effect] for r in results if r.ok]
+        cv = cross_validate(ok, parts, parallel) if ok else None
+    table, evaluations = _table(results, gap_before, problem, by_name, cv)
     best, chain = None, []
     top = table.iloc[0]
     if sig["significant"] and top["status"] == "ok" and top["shrink"] >= MIN_SHRINK:
@@ -357,17 +423,30 @@ def diagnose_gap(real, simulator, *, sample_dt=1.0, effects=None, random_state=N
         others = [e for e in candidates if e.name != best
                   and (not e.signature or not off or set(e.signature) & set(off))]
         more = parallel(delayed(fit_effect)(e, problem, chain) for e in others)
-        second, second_evals = _table(more, after.gap, problem, by_name)
+        cv2 = None
+        if cv is not None:
+            best_on_half = cv[1][best][1]
+            ok = [by_name[r.effect] for r in more if r.ok]
+            cv2 = cross_validate(ok, parts, parallel, [(by_name[best], best_on_half)]) \
+                if (ok and best_on_half) else None
+        second, second_evals = _table(more, after.gap, problem, by_name, cv2)
         s = second.iloc[0]
         if s["status"] == "ok" and s["shrink"] >= MIN_SHRINK:
+            total = (1.0 - (1.0 - top["shrink"]) * (1.0 - s["shrink"]) if cv2 is not None
+                     else 1.0 - max(s["gap_after"], 0.0) / gap_before)
             combined = {"effects": [best, s["effect"]], "params": [dict(top["params"]),
-                        dict(s["params"])], "gap_after": float(s["gap_after"]),
-                        "shrink": 1.0 - max(s["gap_after"], 0.0) / gap_before,
-                        "table": second}
+                        dict(s["params"])], "gap_after": float(gap_before * (1.0 - total)),
+                        "shrink": float(total), "table": second}
             chain = chain + [(by_name[s["effect"]], dict(s["params"]))]
             after = second_evals[0]
     status, reasons = explanation(problem, sig, best, chain, after)
+    if best is not None and cv is not None:
+        # the report's headline numbers are the cross-validated ones
+        cv_shrink = combined["shrink"] if combined else float(top["shrink"])
+    else:
+        cv_shrink = None
     return GapReport.from_problem(problem, table=table, where=where, significance=sig,
                                   best_effect=best, combined=combined, after=after,
+                                  cv_shrink=cv_shrink, cross_validated=cv is not None,
                                   explained=status, reasons=reasons,
                                   checks=consistency(problem, chain))

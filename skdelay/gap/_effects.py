@@ -203,6 +203,15 @@ class Effect:
 
         return generic_search(self, problem, guess, objective)
 
+    def transfer(self, params, n_fit, n_score):
+        """Parameters fitted on the first ``n_fit`` samples, for the next ``n_score`` samples.
+
+        Cross-validation fits on the first half of the record and scores on
+        the second.  Default: the same values (stationary effects); a drift
+        overrides this to continue its ramp.
+        """
+        return dict(params)
+
     # ------------------------------------------------------------- helpers
     def search_bounds(self, guess, context):
         """Bounds of the local search around ``guess`` (default: the global ``bounds``).
@@ -295,7 +304,8 @@ def register_effect(effect, *, overwrite=False):
         raise TypeError(f"effect {name!r} acts on the {cls.target} but does not define {hook}().")
     for key, bound in dict(cls.bounds).items():
         if len(bound) != 2 or not float(bound[0]) < float(bound[1]):
-            raise ValueError(f"effect {name!r}: bounds[{key!r}] must be (low, high) with low < high.")
+            raise ValueError(
+                f"effect {name!r}: bounds[{key!r}] must be (low, high) with low < high.")
     if name in EFFECTS and not overwrite and EFFECTS[name] is not cls:
         raise ValueError(
             f"an effect named {name!r} is already registered; pick another name or pass "

@@ -136,7 +136,8 @@ def _search(effect, problem, guess, objective, space, keys, kind):
             a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
             if b > a:
                 optimize.minimize_scalar(f, bounds=(a, b), method="bounded",
-                                         options={"maxiter": REFINE[kind], "xatol": 1e-3 * (hi - lo)})
+                                         options={"maxiter": REFINE[kind],
+                                                  "xatol": 1e-3 * (hi - lo)})
     else:
         bounds = [(tr[k][0], tr[k][1]) for k in keys]
         simplex = [x0]

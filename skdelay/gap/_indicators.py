@@ -480,7 +480,8 @@ class CrossPrediction(Indicator):
         out = np.zeros(self.n_regions**2)
         ratio = np.log10(chi / chi_self)
         # a cell the series never visits (e.g. a periodic run) carries no information
-        out[np.asarray(i * self.n_regions + j, dtype=int)] = np.where(np.isfinite(ratio), ratio, 0.0)
+        cell = np.asarray(i * self.n_regions + j, dtype=int)
+        out[cell] = np.where(np.isfinite(ratio), ratio, 0.0)
         return out, None
 
     def bounds(self):
@@ -564,7 +565,8 @@ def ensemble_stats(features, indicator, blocks=None):
         w = indicator.smooth
         if w and v.size > 2 * w + 1:
             padded = np.pad(v, w, mode="edge")
-            pool[idx] = np.median(np.lib.stride_tricks.sliding_window_view(padded, 2 * w + 1), axis=1)
+            windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * w + 1)
+            pool[idx] = np.median(windows, axis=1)
         else:
             pool[idx] = np.median(v)
     nu0 = 4.0

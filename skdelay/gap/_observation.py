@@ -151,7 +151,8 @@ class PeriodicInterference(Effect):
     stage = 30
     bounds: ClassVar[dict] = {"amplitude": (1e-3, 3.0)}
     log_params = ("amplitude",)
-    units: ClassVar[dict] = {"frequency": "cycles per time unit", "amplitude": "x signal std", "phase": "rad"}
+    units: ClassVar[dict] = {"frequency": "cycles per time unit", "amplitude": "x signal std",
+                             "phase": "rad"}
     description = "periodic interference (e.g. mains hum)"
     signature: ClassVar[tuple] = ("spectral_line", "spectrum", "autocorrelation")
 
@@ -339,7 +340,8 @@ class Outliers(Effect):
             return {"rate": 1e-3, "size": largest, "detected": False, "unseen": True}
         else:
             rate, size = 1e-3, 4.0
-        return {"rate": _clamp(rate, self.bounds["rate"]), "size": _clamp(size, self.bounds["size"]),
+        return {"rate": _clamp(rate, self.bounds["rate"]),
+                "size": _clamp(size, self.bounds["size"]),
                 "detected": detected}
 
     @staticmethod

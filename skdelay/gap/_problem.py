@@ -17,7 +17,7 @@ from joblib import Parallel, delayed
 from .._checks import check_random_state
 from ._effects import CandidateFailed, EffectFailed, SimulationFailed, call_hook
 from ._indicators import ensemble_stats, indicator_gap, make_indicators, profiles, zscores
-from ._lines import find_lines
+from ._lines import find_lines, spectrum_view
 from ._signature import zscore
 
 __all__ = ["Evaluation", "GapProblem", "SimulationFailed", "run_simulator"]
@@ -99,10 +99,17 @@ class GapProblem:
         joblib workers for the clean ensemble.
     time_unit : str or None
         The simulator's time unit (for reports in Hz); None: unknown.
+    runs : list of ndarray or None
+        Clean runs to use instead of simulating them (the halves of a
+        cross-validation split reuse the full problem's runs).
+    scan_dips : bool, default=True
+        Locate the forecast-error dips (skipped for a held-out half, which is
+        only scored).
     """
 
     def __init__(self, real, simulator, *, sample_dt=1.0, n_sims=6, search_sims=2,
-                 search_length=10_000, random_state=None, n_jobs=None, time_unit=None):
+                 search_length=10_000, random_state=None, n_jobs=None, time_unit=None,
+                 runs=None, scan_dips=True):
         self.real = real
         self.time_unit = time_unit
         self.simulator = simulator
@@ -115,12 +122,14 @@ class GapProblem:
         self.search_length = int(min(n, search_length))
         tau = (getattr(simulator, "params", None) or {}).get("tau")
         self.delay_samples = float(tau) / self.sample_dt if tau is not None else None
-        runs = Parallel(n_jobs=n_jobs)(
-            delayed(run_simulator)(simulator, n, self.sample_dt, s, {}) for s in self.sim_seeds
-        )
+        if runs is None:
+            runs = Parallel(n_jobs=n_jobs)(
+                delayed(run_simulator)(simulator, n, self.sample_dt, s, {})
+                for s in self.sim_seeds)
         self.base = runs
         # lines anywhere from a few cycles per record to Nyquist (a 50 Hz hum at 1 MHz)
         self.lines = find_lines(real, runs, self.sample_dt)
+        self.spectrum_view = spectrum_view(real, runs[:2], self.sample_dt) if scan_dips else None
         self.indicators = make_indicators(real, runs, self.sample_dt, self.delay_samples,
                                           self.lines)
         self.real_z = zscore(real)
@@ -130,14 +139,14 @@ class GapProblem:
         self.base_features = profiles(self.indicators, runs, blocks=True)
         self.base_var = {k: ensemble_stats(f, self.indicators[k], b)[1]
                          for k, (f, b) in self.base_features.items()}
-        self._scan_dips()
+        self._scan_dips(scan_dips)
         self.before = self._compare({k: f for k, (f, _) in self.base_features.items()}, runs)
         self.null_gaps = self._null_gaps()
 
     #: simulator runs whose forecast-error curves give the model's dip and its spread
     DIP_RUNS = 2
 
-    def _scan_dips(self):
+    def _scan_dips(self, scan=True):
         """Forecast-error dips of the real data and of the clean runs (step 1 near the dips).
 
         Sets ``dip`` (the real data's :class:`~skdelay._dips.Dip`), ``sim_dips``,
@@ -149,7 +158,7 @@ class GapProblem:
         from .._dips import locate_dip
         from ._indicators import fe_scan, other_dips
 
-        if not self.delay_samples:
+        if not (self.delay_samples and scan):
             self.dip = None
             self.sim_dips, self.second_dips, self.dip_curves = [], [], None
             self.dip_real = self.dip_sim = self.dip_spread = None
@@ -208,7 +217,7 @@ class GapProblem:
         return {k: f[0] for k, (f, _) in feats.items()}
 
     def evaluate(self, chain, tier="full", keep_runs=False):
-        """:class:`Evaluation` of real vs simulator + chain; ``tier='fast'`` skips costly indicators."""
+        """:class:`Evaluation` of real vs simulator + chain (``tier='fast'``: cheap indicators)."""
         runs = self.ensemble(chain, tier)
         names = [k for k, ind in self.indicators.items() if tier == "full" or ind.tier == "fast"]
         feats = profiles({k: self.indicators[k] for k in names}, runs)
@@ -251,6 +260,26 @@ class GapProblem:
                 total += gap
             out.append(total)
         return np.array(out)
+
+    def split(self):
+        """``(first, second)``: problems on the two halves of the record (same seeds and
+        clean runs, cut likewise) for cross-validation: fit on one, score on the other."""
+        h = self.n_samples // 2
+        parts = []
+        for lo, scan in ((0, True), (h, False)):
+            p = GapProblem.__new__(GapProblem)
+            p._init_part(self, lo, lo + h, scan)
+            parts.append(p)
+        return tuple(parts)
+
+    def _init_part(self, parent, lo, hi, scan):
+        GapProblem.__init__(
+            self, parent.real[lo:hi], parent.simulator, sample_dt=parent.sample_dt,
+            n_sims=len(parent.base), search_sims=parent.search_sims,
+            search_length=parent.search_length, random_state=0, time_unit=parent.time_unit,
+            runs=[x[lo:hi] for x in parent.base], scan_dips=scan)
+        # the parent's seeds: the halves' evaluations share the parent's random numbers
+        self.sim_seeds, self.effect_seed = parent.sim_seeds, parent.effect_seed
 
     def line_contribution(self):
         """Gap removed by subtracting the strongest spectral line (its signature estimate)."""

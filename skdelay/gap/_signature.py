@@ -200,7 +200,10 @@ def centroid(x, sample_dt, nperseg=1024):
 
 
 def onepole_gain2(f, cutoff, sample_dt):
-    """Power gain of the discrete one-pole low-pass ``y += (1 - a) (x - y)``, ``a = exp(-2 pi fc dt)``."""
+    """Power gain of the discrete one-pole low-pass ``y += (1 - a) (x - y)``.
+
+    ``a = exp(-2 pi fc dt)``.
+    """
     a = np.exp(-2 * np.pi * cutoff * sample_dt)
     return (1 - a) ** 2 / (1 - 2 * a * np.cos(2 * np.pi * f * sample_dt) + a**2)
 

@@ -152,7 +152,8 @@ class DelayMismatch(Effect):
     bounds: ClassVar[dict] = {"tau": (1e-9, 1e12)}
     units: ClassVar[dict] = {"tau": "time units"}
     description = "delay mismatch"
-    signature: ClassVar[tuple] = ("forecast_error", "autocorrelation", "spectrum", "cross_prediction")
+    signature: ClassVar[tuple] = ("forecast_error", "autocorrelation", "spectrum",
+                                  "cross_prediction")
 
     def check(self, params, simulator=None):
         if simulator is not None:
@@ -182,7 +183,8 @@ class DelayMismatch(Effect):
         return {"tau": float(params["tau"])}
 
     def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0, time_unit=None):
-        return f"delay tau = {_fmt(params['tau'])} time units ({_fmt(params['tau'] / sample_dt)} samples)"
+        samples = _fmt(params["tau"] / sample_dt)
+        return f"delay tau = {_fmt(params['tau'])} time units ({samples} samples)"
 
 
 @register_effect
@@ -326,6 +328,13 @@ class ParameterDrift(Effect):
             scores.append(float(abs(shift @ dev) / norm) if norm > 0 else 0.0)
         order = np.argsort(scores)[::-1]
         return [keys[i] for i in order]
+
+    def transfer(self, params, n_fit, n_score):
+        """The linear ramp fitted on the first ``n_fit`` samples, continued over the next
+        ``n_score`` ones (a constant mismatch stays constant)."""
+        start, end = float(params["start"]), float(params["end"])
+        slope = (end - start) / n_fit
+        return dict(params, start=end, end=end + slope * n_score)
 
     def overrides(self, params, simulator):
         start, end = float(params["start"]), float(params["end"])
