@@ -104,7 +104,7 @@ def test_key_figure_follows_the_effect(hum_report):
     drift = dataclasses.replace(clip, best_effect="parameter_drift")
     fig = drift.plot()
     assert fig.axes[0].get_xlabel() == "time (time units)"
-    assert fig.axes[0].get_title().startswith("segment statistics against time")
+    assert fig.axes[0].get_title().startswith("statistics per segment against time")
     plt.close(fig)
     delay = dataclasses.replace(clip, best_effect="delay_mismatch")
     fig = delay.plot()

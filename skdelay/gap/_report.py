@@ -462,7 +462,7 @@ class GapReport:
         ax.axhline(0.0, color="0.5", lw=0.8)
         ax.set_xlabel(f"time ({tu})")
         ax.set_ylabel("change from the first segment (standard units)")
-        ax.set_title("segment statistics against time (bands: simulator +- 2 spreads)")
+        ax.set_title("statistics per segment against time (bands: simulator +- 2 spreads)")
         ax.legend(fontsize=7)
 
     def to_html(self, path):
