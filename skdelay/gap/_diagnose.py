@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pandas as pd
 from joblib import Parallel, delayed
+from threadpoolctl import threadpool_limits
 
 from .._checks import check_positive_int, check_series
 from ._effects import CandidateFailed, EffectFailed, call_hook, is_builtin, resolve_effects
@@ -185,7 +186,7 @@ def consistency(problem, chain):
     return out
 
 
-def explanation(problem, sig, best, chain, after):
+def explanation(problem, sig, best, chain, after, lacking=None):
     """``(status, reasons)``: is the gap fully explained by the fitted chain of effects?
 
     ``"fully"`` only when, with the effects added, no indicator stays
@@ -201,7 +202,7 @@ def explanation(problem, sig, best, chain, after):
     off = off_indicators(problem, after if after is not None else problem.before)
     for name, (gap, zmax) in sorted(off.items(), key=lambda item: -item[1][0]):
         reasons.append(f"{name} still off (gap {gap:.3g}, largest |z| {zmax:.1f})")
-    for dip in problem.second_dips:
+    for dip in (problem.lacking_dips(chain) if lacking is None else lacking):
         reasons.append(f"a second forecast-error dip at {dip.centre * problem.sample_dt:.4g} "
                        "time units that the simulator lacks")
     for _, ok, text in consistency(problem, chain):
@@ -382,6 +383,19 @@ def diagnose_gap(real, simulator, *, sample_dt=1.0, effects=None, random_state=N
     >>> round(report.effects.params[0]["frequency"], 3)
     0.2
     """
+    # the diagnosis multiplies many small matrices (tapers x bases, local fits): on a busy
+    # 2-core machine OpenBLAS's threads spin against each other and the line feature took
+    # 175 ms of CPU per run instead of 4.5 ms single-threaded (joblib's workers are limited
+    # by joblib itself)
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _diagnose(real, simulator, sample_dt=sample_dt, effects=effects,
+                         random_state=random_state, n_jobs=n_jobs, n_sims=n_sims,
+                         combine=combine, verbose=verbose, time_unit=time_unit,
+                         cross_validated=cross_validated)
+
+
+def _diagnose(real, simulator, *, sample_dt, effects, random_state, n_jobs, n_sims, combine,
+              verbose, time_unit, cross_validated):
     real = check_series(real, name="real", min_length=MIN_SAMPLES)
     sample_dt, time_unit = parse_sample_dt(sample_dt, time_unit)
     params = _check_simulator(simulator)
@@ -439,7 +453,8 @@ def diagnose_gap(real, simulator, *, sample_dt=1.0, effects=None, random_state=N
                         "shrink": float(total), "table": second}
             chain = chain + [(by_name[s["effect"]], dict(s["params"]))]
             after = second_evals[0]
-    status, reasons = explanation(problem, sig, best, chain, after)
+    lacking = problem.lacking_dips(chain)
+    status, reasons = explanation(problem, sig, best, chain, after, lacking)
     if best is not None and cv is not None:
         # the report's headline numbers are the cross-validated ones
         cv_shrink = combined["shrink"] if combined else float(top["shrink"])
@@ -448,5 +463,5 @@ def diagnose_gap(real, simulator, *, sample_dt=1.0, effects=None, random_state=N
     return GapReport.from_problem(problem, table=table, where=where, significance=sig,
                                   best_effect=best, combined=combined, after=after,
                                   cv_shrink=cv_shrink, cross_validated=cv is not None,
-                                  explained=status, reasons=reasons,
+                                  explained=status, reasons=reasons, lacking=lacking,
                                   checks=consistency(problem, chain))

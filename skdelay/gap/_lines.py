@@ -75,7 +75,7 @@ class Line:
     half_width: float
 
 
-@functools.lru_cache(maxsize=8)
+@functools.lru_cache(maxsize=32)
 def tapers(n):
     """The ``K`` DPSS tapers of length ``n`` (unit energy; cached: 0.3 s at n = 4e4)."""
     return np.asarray(signal.windows.dpss(n, NW, K), dtype=float)
@@ -271,28 +271,38 @@ def _amplitude(z, freq, sample_dt):
 
 @functools.lru_cache(maxsize=16)
 def _basis(n, frequencies, sample_dt):
-    """``(n, m)`` complex exponentials at ``frequencies`` (cached: the line indicator
-    evaluates the same frequencies on runs of the same length again and again)."""
-    t = np.arange(n) * sample_dt
-    return np.exp(-2j * np.pi * np.outer(t, np.asarray(frequencies)))
+    """``(cos, sin)`` matrices ``(n, m)`` at ``frequencies`` (cached: the line indicator
+    evaluates the same frequencies on runs of the same length again and again).
+
+    Real matrices: a real-by-complex matrix product misses the BLAS path and
+    was 50 times slower (0.28 s per run of 4e4 samples).
+    """
+    phase = 2.0 * np.pi * np.outer(np.arange(n) * sample_dt, np.asarray(frequencies))
+    return np.ascontiguousarray(np.cos(phase)), np.ascontiguousarray(np.sin(phase))
+
+
+#: the line feature uses a prefix of the run whose length is a multiple of this: runs of
+#: many slightly different lengths (a time-base factor resamples them) share tapers and bases
+LENGTH_STEP = 512
 
 
 def line_feature(z, frequency, sample_dt, n_ref):
     """log10 of the multitaper power at ``frequency`` over the local continuum.
 
-    The continuum is the median power of the bins 3..12 half-widths away on
-    either side.  A line's excess grows with the record length, the
-    continuum's does not: for a run of another length than the real record
-    (``n_ref``) the excess is rescaled to ``n_ref`` so that runs of any
-    length are comparable.
+    The continuum is the median power at 3..12 half-widths on either side.
+    A line's excess grows with the record length, the continuum's does not:
+    for a run of another length than the real record (``n_ref``) the excess
+    is rescaled to ``n_ref`` so that runs of any length are comparable.
     """
-    n = z.size
+    n = z.size if z.size < LENGTH_STEP else (z.size // LENGTH_STEP) * LENGTH_STEP
+    z = z[:n]
     df = 1.0 / (n * sample_dt)
     offsets = np.concatenate([-np.arange(3, 13), np.arange(3, 13)]) * NW * df
     freqs = np.concatenate([[frequency], frequency + offsets])
     freqs = freqs[(freqs > 0) & (freqs < 0.5 / sample_dt)]
-    coef = (tapers(n) * z[None, :]) @ _basis(n, tuple(freqs), float(sample_dt))
-    power = np.mean(np.abs(coef) ** 2, axis=0)
+    cos, sin = _basis(n, tuple(freqs), float(sample_dt))
+    tz = tapers(n) * z[None, :]
+    power = np.mean((tz @ cos) ** 2 + (tz @ sin) ** 2, axis=0)
     ratio = power[0] / max(float(np.median(power[1:])), 1e-300)
     ratio = 1.0 + (ratio - 1.0) * (n_ref / n)
     return float(np.log10(max(ratio, 1e-3)))

@@ -167,8 +167,13 @@ class GapProblem:
 
         taus, real_curve = fe_scan(self.real, self.delay_samples)
         sim_curves = [_fe_curve(x, taus) for x in self.base[: self.DIP_RUNS]]
-        self.dip = locate_dip(taus, real_curve)
-        self.sim_dips = [locate_dip(taus, c) for c in sim_curves]
+        # the delay's dip is sought near the model's delay (+-max(6, delay / 4) samples, as
+        # wide as a delay mismatch the fit considers): a strong hum makes a deeper dip of its
+        # own at a quarter of its period, which is not the delay
+        d0 = self.delay_samples
+        near = np.abs(taus - d0) <= max(6.0, d0 / 4.0)
+        self.dip = locate_dip(taus[near], real_curve[near])
+        self.sim_dips = [locate_dip(taus[near], c[near]) for c in sim_curves]
         centres = np.array([d.centre for d in self.sim_dips])
         scatter = float(centres.std(ddof=1)) if centres.size > 1 else 0.0
         se = np.hypot(self.dip.centre_se, np.mean([d.centre_se for d in self.sim_dips]))
@@ -260,6 +265,33 @@ class GapProblem:
                 total += gap
             out.append(total)
         return np.array(out)
+
+    def lacking_dips(self, chain):
+        """The second dips of the real data that simulator + ``chain`` still lack.
+
+        A dip "the simulator lacks" may come from an effect (a strong hum makes
+        one at a quarter of its period): two runs with the chain are scanned at
+        the delays around each dip and the dip counts only if the real curve
+        still lies ``SECOND_DIP_DEPTH`` below theirs there.
+        """
+        from ._indicators import SECOND_DIP_DEPTH, _fe_curve
+
+        if not self.second_dips:
+            return []
+        if not chain:
+            return list(self.second_dips)
+        taus, real_curve, _ = self.dip_curves
+        try:
+            runs = self.ensemble(chain, "full")[: self.DIP_RUNS]
+        except CandidateFailed:
+            return list(self.second_dips)
+        out = []
+        for dip in self.second_dips:
+            k = int(np.argmin(np.abs(taus - dip.tau_min)))
+            ref = np.mean([_fe_curve(x, [taus[k]])[0] for x in runs])
+            if 1.0 - real_curve[k] / ref >= SECOND_DIP_DEPTH:
+                out.append(dip)
+        return out
 
     def split(self):
         """``(first, second)``: problems on the two halves of the record (same seeds and

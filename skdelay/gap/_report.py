@@ -96,6 +96,7 @@ class GapReport:
 
     @classmethod
     def from_problem(cls, problem, *, table, where, significance, best_effect, combined, after,
+                     lacking=(),
                      explained="no gap", reasons=(), checks=(), cv_shrink=None,
                      cross_validated=False):
         """Assemble the report from a solved :class:`GapProblem`."""
@@ -132,7 +133,8 @@ class GapReport:
         return cls(best_effect=best_effect, effects=table, where=where, gap_before=gap_before,
                    gap_after=gap_after, shrink=1.0 - max(gap_after, 0.0) / gap_before
                    if gap_before > 0 else 0.0, significance=significance, combined=combined,
-                   residual_where=localise(problem, after) if after is not None else None,
+                   residual_where=(localise(problem, after, lacking=lacking)
+                                   if after is not None else None),
                    profiles=profiles, info=info, explained=explained, reasons=list(reasons),
                    checks=list(checks))
 

@@ -31,7 +31,7 @@ def _runs(mask, labels):
     return out
 
 
-def localise(problem, evaluation=None):
+def localise(problem, evaluation=None, lacking=None):
     """DataFrame of localised discrepancies between real and simulated data, largest first.
 
     ``peak`` is the centre of the run's most discrepant bin.  ``excess`` is
@@ -67,7 +67,11 @@ def localise(problem, evaluation=None):
         for row in rows:
             if row["feature"] == "spectral line":
                 row["excess"] = max(row["excess"], share)
-    rows.extend(_dip_rows(problem, ev))
+    if evaluation is None:
+        rows.extend(_dip_rows(problem, ev, problem.second_dips, shift=True))
+    elif lacking:
+        # after the effects: only the second dips that simulator + effects still lack
+        rows.extend(_dip_rows(problem, ev, lacking, shift=False))
     df = pd.DataFrame(rows, columns=COLUMNS)
     return df.sort_values("excess", ascending=False, kind="stable").reset_index(drop=True)
 
@@ -132,9 +136,9 @@ def dip_shift_significant(problem):
     return bool(shift >= max(DIP_MIN_SHIFT, DIP_Z * problem.dip_spread))
 
 
-def _dip_rows(problem, ev):
-    """Rows for the forecast-error dips: the real dip shifted from the model's, and dips of
-    the real data the simulator lacks (a second feedback delay)."""
+def _dip_rows(problem, ev, second, shift=True):
+    """Rows for the forecast-error dips: the real dip shifted from the model's (``shift``),
+    and the dips ``second`` of the real data that the simulator lacks (a second delay)."""
     if problem.dip is None or "forecast_error" not in ev.z:
         return []
     rows = []
@@ -142,7 +146,7 @@ def _dip_rows(problem, ev):
     _, unit = user_units(problem, problem.indicators["forecast_error"].unit)
     d_real, d_sim = problem.dip_real, problem.dip_sim
     tu = unit.replace(" (delay)", "")
-    if dip_shift_significant(problem):
+    if shift and dip_shift_significant(problem):
         rows.append({
             "indicator": "forecast_error", "feature": "dip position",
             "low": min(d_real, d_sim) * dt, "high": max(d_real, d_sim) * dt,
@@ -153,7 +157,7 @@ def _dip_rows(problem, ev):
             "note": f"forecast-error dip at {d_real * dt:.4g} (real) vs {d_sim * dt:.4g} "
                     f"(simulated) {tu}: the delay differs",
         })
-    for dip in problem.second_dips:
+    for dip in second:
         rows.append({
             "indicator": "forecast_error", "feature": "second dip",
             "low": (dip.centre - dip.half_width) * dt, "high": (dip.centre + dip.half_width) * dt,
