@@ -95,7 +95,13 @@ class Effect:
 
     Subclasses set the class attributes and implement :meth:`guess` plus
     either :meth:`apply` (``target = "observation"``) or :meth:`overrides`
-    (``target = "simulation"``).  Parameters are plain floats in the units
+    (``target = "simulation"``).  The other hooks have default
+    implementations that subclasses may override: :meth:`initial` (starting
+    parameters from the whole problem), :meth:`search` (the fit),
+    :meth:`search_bounds`, :meth:`check`, :meth:`transfer` (parameters
+    fitted on one half of the record for the other half) and
+    :meth:`describe`.  Whatever a user-registered effect raises fails that
+    candidate only, with the exception as the reason.  Parameters are plain floats in the units
     listed in ``units``; amplitudes of observation effects are relative to
     the standard deviation of the clean simulated signal, so they do not
     depend on gain or offset of the real data.

@@ -105,11 +105,16 @@ class GapProblem:
     scan_dips : bool, default=True
         Locate the forecast-error dips (skipped for a held-out half, which is
         only scored).
+    lines : list of Line or None
+        Spectral lines to use instead of searching them (the halves of a
+        split use the whole record's: a hum of 3 cycles per record has 1.5
+        per half; the line's frequency is a signature read off the whole
+        record, its amplitude is what the halves fit and score).
     """
 
     def __init__(self, real, simulator, *, sample_dt=1.0, n_sims=6, search_sims=2,
                  search_length=10_000, random_state=None, n_jobs=None, time_unit=None,
-                 runs=None, scan_dips=True):
+                 runs=None, scan_dips=True, lines=None):
         self.real = real
         self.time_unit = time_unit
         self.simulator = simulator
@@ -128,7 +133,7 @@ class GapProblem:
                 for s in self.sim_seeds)
         self.base = runs
         # lines anywhere from a few cycles per record to Nyquist (a 50 Hz hum at 1 MHz)
-        self.lines = find_lines(real, runs, self.sample_dt)
+        self.lines = find_lines(real, runs, self.sample_dt) if lines is None else list(lines)
         self.spectrum_view = spectrum_view(real, runs[:2], self.sample_dt) if scan_dips else None
         self.indicators = make_indicators(real, runs, self.sample_dt, self.delay_samples,
                                           self.lines)
@@ -172,6 +177,8 @@ class GapProblem:
         # own at a quarter of its period, which is not the delay
         d0 = self.delay_samples
         near = np.abs(taus - d0) <= max(6.0, d0 / 4.0)
+        if near[int(np.argmin(real_curve))]:
+            near[:] = True  # the deepest dip is the delay's: the whole curve gives the baseline
         self.dip = locate_dip(taus[near], real_curve[near])
         self.sim_dips = [locate_dip(taus[near], c[near]) for c in sim_curves]
         centres = np.array([d.centre for d in self.sim_dips])
@@ -309,7 +316,7 @@ class GapProblem:
             self, parent.real[lo:hi], parent.simulator, sample_dt=parent.sample_dt,
             n_sims=len(parent.base), search_sims=parent.search_sims,
             search_length=parent.search_length, random_state=0, time_unit=parent.time_unit,
-            runs=[x[lo:hi] for x in parent.base], scan_dips=scan)
+            runs=[x[lo:hi] for x in parent.base], scan_dips=scan, lines=parent.lines)
         # the parent's seeds: the halves' evaluations share the parent's random numbers
         self.sim_seeds, self.effect_seed = parent.sim_seeds, parent.effect_seed
 
