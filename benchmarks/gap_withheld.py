@@ -2,8 +2,12 @@
 
 "Real" data = a simulator run + ONE hidden effect drawn at random from the
 effect library, with a random strength from barely detectable to strong; the
-diagnosis is not told which.  Also: combined effects (two hidden effects)
-and no-effect controls (another seed of the same simulator).  Prints
+diagnosis is not told which.  Also: combined effects (two hidden effects,
+always including noise + hum), causes outside the library whose right answer
+is "not fully explained" (a second feedback delay, a tanh detector), no-effect
+controls (another seed of the same simulator) and ADC-count controls (the
+same, in other units: gain and offset only, no cause).  Hums are drawn from 3
+cycles per record up to 0.95 x Nyquist (log-uniform).  Prints
 
 * a confusion table (true effect vs effect found, including None),
 * per effect: hit rate, parameter-recovery error and shrink, by strength class,
@@ -13,7 +17,7 @@ and no-effect controls (another seed of the same simulator).  Prints
 
 Usage::
 
-    python benchmarks/gap_withheld.py                    # MG + laser, 2 cases per effect
+    python benchmarks/gap_withheld.py                    # MG + laser + Ikeda (dt 0.5)
     python benchmarks/gap_withheld.py --systems mg --cases 4 --n 15000
     python benchmarks/gap_withheld.py --runtime-only
 
@@ -34,11 +38,16 @@ import pandas as pd
 from joblib import Parallel, delayed
 
 from skdelay.gap import diagnose_gap, get_effect
-from skdelay.systems import CO2LaserFeedback, MackeyGlass
+from skdelay.systems import CO2LaserFeedback, Ikeda, MackeyGlass
 
 EFFECT_NAMES = ["measurement_noise", "dynamical_noise", "quantization", "periodic_interference",
                 "lowpass", "delay_mismatch", "parameter_drift", "clipping", "outliers",
                 "timebase_mismatch"]
+
+
+#: record length and sampling step of the case being drawn (set by build_cases)
+N_RECORD = 15000
+SAMPLE_DT = [1.0]
 
 
 def _logmix(weak, strong, u):
@@ -80,7 +89,9 @@ def draw_params(system, effect, u, rng):
     if effect == "quantization":
         return {"step": _logmix(0.004, 0.25, u), "phase": float(rng.uniform())}
     if effect == "periodic_interference":
-        return {"frequency": float(rng.uniform(0.02, 0.45)),
+        # from 3 cycles per record (a mains hum in a fast recording) to 0.95 x Nyquist
+        lo, hi = 3.0 / (N_RECORD * SAMPLE_DT[0]), 0.475 / SAMPLE_DT[0]
+        return {"frequency": float(np.exp(rng.uniform(np.log(lo), np.log(hi)))),
                 "amplitude": _logmix(0.01, 0.3, u) if laser else _logmix(0.004, 0.2, u),
                 "phase": float(rng.uniform(0, 2 * np.pi))}
     if effect == "lowpass":
@@ -89,7 +100,8 @@ def draw_params(system, effect, u, rng):
         shift = _logmix(1.0, 12.0, u) if laser else _logmix(0.3, 4.0, u)
         return {"tau": float(tau0 + rng.choice([-1, 1]) * shift)}
     if effect == "parameter_drift":
-        keys = ["b0", "r", "beta"] if laser else ["a", "b", "n"]
+        keys = (["b0", "r", "beta"] if laser else ["mu", "x0"] if isinstance(system, Ikeda)
+                else ["a", "b", "n"])
         key = str(rng.choice(keys))
         v0 = system.params[key]
         weak, strong = LASER_DRIFT[key] if laser else (0.01, 0.15)
@@ -109,8 +121,60 @@ def draw_params(system, effect, u, rng):
     raise ValueError(effect)
 
 
+#: causes outside the effect library (right answer: not fully explained) and unit controls
+OUTSIDE = ("second_delay", "tanh_detector")
+
+
 def make_real(system, chain, n, seed, sample_dt):
-    """Simulator run with the hidden chain of (effect name, params)."""
+    """Simulator run with the hidden chain of (effect name, params).
+
+    Besides library effects the chain may hold ``("second_delay", {"c": .., "tau2": ..})``
+    (Mackey-Glass only: a second feedback term, integrated here), ``("tanh_detector",
+    {"gain": ..})`` (a compressing detector) and ``("adc_counts", {"gain": .., "offset": ..})``
+    (other units: no cause).
+    """
+    chain = list(chain)
+    special = {name: params for name, params in chain
+               if name in OUTSIDE or name == "adc_counts"}
+    chain = [(name, params) for name, params in chain if name not in special]
+    if "second_delay" in special:
+        p = special["second_delay"]
+        x = _two_delay_mg(n, int(system.params["tau"]), int(p["tau2"]), p["c"], seed)
+    else:
+        x = _make_library(system, chain, n, seed, sample_dt)
+    if "tanh_detector" in special:
+        z = (x - x.mean()) / x.std()
+        x = np.tanh(special["tanh_detector"]["gain"] * z)
+    if "adc_counts" in special:
+        p = special["adc_counts"]
+        x = p["offset"] + p["gain"] * (x - x.mean()) / x.std()
+    return x
+
+
+def _two_delay_mg(n, tau1, tau2, c, seed, substeps=10):
+    """Mackey-Glass with a second feedback term c g(x(t - tau2)) (step 1, Heun)."""
+    rng = np.random.default_rng(seed)
+    h = 1.0 / substeps
+    e1, e2 = tau1 * substeps, tau2 * substeps
+    dm = max(e1, e2)
+    transient = 1000 + int(rng.integers(0, 2000))
+    steps = (n + transient) * substeps
+    x = np.empty(steps + dm + 1)
+    x[: dm + 1] = 1.2 + 0.1 * rng.random(dm + 1)
+    def g(v):  # the feedback nonlinearity
+        return v / (1.0 + v**10)
+
+    for i in range(dm, dm + steps):
+        f0 = 0.2 * g(x[i - e1]) + c * g(x[i - e2]) - (0.1 + c / 2) * x[i]
+        xp = x[i] + h * f0
+        f1 = 0.2 * g(x[i - e1 + 1]) + c * g(x[i - e2 + 1]) - (0.1 + c / 2) * xp
+        x[i + 1] = x[i] + 0.5 * h * (f0 + f1)
+    start = dm + transient * substeps
+    return x[start: start + n * substeps: substeps].copy()
+
+
+def _make_library(system, chain, n, seed, sample_dt):
+    """Simulator run with the hidden chain of library effects."""
     overrides, obs = {}, []
     for name, params in chain:
         eff = get_effect(name)
@@ -125,13 +189,14 @@ def make_real(system, chain, n, seed, sample_dt):
     return np.asarray(x)[:n]
 
 
-def recovery_error(effect, true, fit, system, sample_dt):
+def recovery_error(effect, true, fit, system, sample_dt, n):
     """Parameter-recovery error: relative error (<= 0.2 is "within 20 %"), or for the hum
-    the error in spectral bins and for the delay the error in samples (<= 1 is a hit)."""
+    the error in bins of the record (1 / (n dt)) and for the delay the error in samples
+    (<= 1 is a hit)."""
     if not fit:
         return np.nan
     if effect == "periodic_interference":
-        return max(abs(fit["frequency"] - true["frequency"]) * 1024 * sample_dt,
+        return max(abs(fit["frequency"] - true["frequency"]) * n * sample_dt,
                    abs(fit["amplitude"] / true["amplitude"] - 1) / 0.2)
     if effect == "delay_mismatch":
         return abs(fit["tau"] - true["tau"]) / sample_dt
@@ -163,8 +228,10 @@ def run_case(case, n, sample_dt):
            "found": rep.best_effect or "None", "seconds": seconds,
            "gap_before": rep.gap_before, "significant": rep.significance["significant"],
            "shrink": rep.shrink if rep.best_effect else np.nan, "error": np.nan,
-           "second": rep.combined["effects"][1] if rep.combined else None}
-    if len(case["chain"]) == 1:
+           "second": rep.combined["effects"][1] if rep.combined else None,
+           "cv_shrink": rep.shrink, "fit_shrink": rep.info.get("shrink_fit", np.nan)}
+    out["explained"] = rep.explained
+    if len(case["chain"]) == 1 and case["true"] in EFFECT_NAMES:
         name, true = case["chain"][0]
         fit = rep.effects.set_index("effect").loc[name, "params"]
         if name == "outliers":  # the spikes are random: compare with the realised ones
@@ -172,7 +239,8 @@ def run_case(case, n, sample_dt):
             hit = real != clean
             true = dict(true, rate=float(np.mean(hit)),
                         size=float(np.median(np.abs(real - clean)[hit]) / clean.std()))
-        out["error"] = recovery_error(name, true, fit, system, sample_dt)
+        out["error"] = (recovery_error(name, true, fit, system, sample_dt, n)
+                        if name not in OUTSIDE and name != "adc_counts" else np.nan)
         out["true_params"] = _short(true)
         out["fit_params"] = _short(fit)
     return out
@@ -183,31 +251,51 @@ def _short(params):
                      for k, v in params.items() if k != "phase")
 
 
-def build_cases(systems, n_cases, n_controls, n_combined, seed):
+def build_cases(systems, n_cases, n_controls, n_combined, seed, n=15000, n_outside=1):
+    """Cases per system: every library effect, no-effect and ADC-count controls, combined
+    pairs (the first always measurement noise + hum) and causes outside the library."""
+    global N_RECORD
+    N_RECORD = n
     rng = np.random.default_rng(seed)
     cases = []
     k = 0
-    for label, system in systems:
+
+    def add(label, system, chain, true, strength):
+        nonlocal k
+        cases.append({"system": system, "label": label, "chain": chain, "true": true,
+                      "strength": strength, "seed": seed + 1000 * k})
+        k += 1
+
+    for label, system, dt in systems:
+        SAMPLE_DT[0] = dt
         for effect in EFFECT_NAMES:
             for i in range(n_cases):
                 # strengths stratified over the classes, jittered
                 u = float(np.clip((i % 3 + rng.uniform()) / 3, 0, 1))
                 params = draw_params(system, effect, u, rng)
                 cls = "weak" if u < 1 / 3 else ("moderate" if u < 2 / 3 else "strong")
-                cases.append({"system": system, "label": label, "chain": [(effect, params)],
-                              "true": effect, "strength": cls, "seed": seed + 1000 * k})
-                k += 1
-        for _ in range(n_controls):
-            cases.append({"system": system, "label": label, "chain": [], "true": "None",
-                          "strength": "-", "seed": seed + 1000 * k})
-            k += 1
-        for _ in range(n_combined):
-            a, b = rng.choice(["periodic_interference", "measurement_noise", "lowpass",
-                               "clipping", "quantization"], size=2, replace=False)
+                add(label, system, [(effect, params)], effect, cls)
+        for j in range(n_controls):
+            add(label, system, [], "None", "-")
+            # the same data in ADC counts: gain and offset are nuisance, never a cause
+            add(label, system, [("adc_counts", {"gain": float(rng.uniform(50, 3000)),
+                                                "offset": float(rng.uniform(-1e4, 1e4))})],
+                "None", "adc")
+        for j in range(n_combined):
+            if j == 0:
+                a, b = "measurement_noise", "periodic_interference"
+            else:
+                a, b = rng.choice(["periodic_interference", "measurement_noise", "lowpass",
+                                   "clipping", "quantization"], size=2, replace=False)
             chain = [(a, draw_params(system, a, 0.55, rng)), (b, draw_params(system, b, 0.5, rng))]
-            cases.append({"system": system, "label": label, "chain": chain,
-                          "true": f"{a}+{b}", "strength": "moderate", "seed": seed + 1000 * k})
-            k += 1
+            add(label, system, chain, f"{a}+{b}", "moderate")
+        for _ in range(n_outside):
+            add(label, system, [("tanh_detector", {"gain": float(rng.uniform(0.8, 1.5))})],
+                "tanh_detector", "outside")
+            if isinstance(system, MackeyGlass):
+                add(label, system, [("second_delay", {"c": float(rng.uniform(0.03, 0.08)),
+                                                      "tau2": float(rng.integers(30, 45))})],
+                    "second_delay", "outside")
     return cases
 
 
@@ -227,7 +315,9 @@ def runtime(system, label, n, sample_dt, n_jobs):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--systems", default="mg,laser")
+    ap.add_argument("--systems", default="mg,laser,ikeda")
+    ap.add_argument("--outside", type=int, default=1,
+                    help="cases per cause outside the library (tanh detector; MG: second delay)")
     ap.add_argument("--n", type=int, default=15000, help="samples per real series")
     ap.add_argument("--cases", type=int, default=2, help="cases per effect and system")
     ap.add_argument("--controls", type=int, default=6, help="no-effect controls per system")
@@ -241,7 +331,8 @@ def main(argv=None):
     pd.set_option("display.max_columns", 30)
     pd.set_option("display.max_colwidth", 70)
     available = {"mg": ("mackey_glass", MackeyGlass(), 1.0),
-                 "laser": ("co2_laser_tau150", CO2LaserFeedback(tau=150.0), 1.0)}
+                 "laser": ("co2_laser_tau150", CO2LaserFeedback(tau=150.0), 1.0),
+                 "ikeda": ("ikeda_dt0.5", Ikeda(), 0.5)}
     chosen = [available[s.strip()] for s in args.systems.split(",")]
 
     print(f"== runtime of one diagnosis on {args.runtime_n} points (hidden hum) ==")
@@ -251,8 +342,8 @@ def main(argv=None):
     if args.runtime_only:
         return
 
-    cases = build_cases([(label, system) for label, system, _ in chosen], args.cases,
-                        args.controls, args.combined, args.seed)
+    cases = build_cases(chosen, args.cases, args.controls, args.combined, args.seed, args.n,
+                        args.outside)
     dt = {label: d for label, _, d in chosen}
     t0 = time.perf_counter()
     results = []
@@ -265,7 +356,8 @@ def main(argv=None):
     df = pd.DataFrame(results)
     print(f"\n== {len(df)} cases, n = {args.n}, wall {time.perf_counter() - t0:.0f} s ==")
 
-    single = df[~df.true.str.contains(r"\+") & (df.true != "None")]
+    outside = df[df.true.isin(OUTSIDE)]
+    single = df[~df.true.str.contains(r"\+") & (df.true != "None") & ~df.true.isin(OUTSIDE)]
     print("\n-- confusion table (rows: hidden effect, columns: best_effect found) --")
     print(pd.crosstab(pd.concat([single.true, df[df.true == "None"].true]),
                       pd.concat([single.found, df[df.true == "None"].found])).to_string())
@@ -290,6 +382,11 @@ def main(argv=None):
         print(comb[["system", "true", "found", "second", "shrink", "gap_before"]].to_string(
             index=False, float_format=lambda v: f"{v:.3g}"))
 
+    if len(outside):
+        print("\n-- causes outside the library (right answer: not fully explained) --")
+        print(outside[["system", "true", "found", "explained", "shrink", "fit_shrink",
+                       "gap_before"]].to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+
     ctrl = df[df.true == "None"]
     mod = single[single.strength != "weak"]
     print("\n== headline ==")
@@ -298,10 +395,22 @@ def main(argv=None):
     print(f"parameters within tolerance (of the hits): "
           f"{mod[mod.hit].recovered.mean():.0%}; median shrink {mod[mod.hit].shrink.median():.2f}")
     print(f"weak: right effect first {single[single.strength == 'weak'].hit.mean():.0%}")
-    print(f"no-effect controls reported as None: {(ctrl.found == 'None').mean():.0%} "
-          f"({(ctrl.found == 'None').sum()}/{len(ctrl)})")
+    for kind, part in (("no-effect", ctrl[ctrl.strength == "-"]),
+                       ("ADC-count", ctrl[ctrl.strength == "adc"])):
+        print(f"{kind} controls reported as None: {(part.found == 'None').mean():.0%} "
+              f"({(part.found == 'None').sum()}/{len(part)})")
+    if len(outside):
+        right = outside.explained != "fully"
+        print(f"outside the library, not reported as fully explained: {right.mean():.0%} "
+              f"({right.sum()}/{len(outside)})")
+    hum = single[single.true == "periodic_interference"]
+    if len(hum):
+        print(f"hums (3 cycles per record .. 0.95 Nyquist): found {np.mean(hum.hit):.0%}, "
+              f"frequency within one bin and amplitude within 20 % "
+              f"{np.mean(hum.hit & (hum.error <= 1.0)):.0%} ({len(hum)} cases)")
     if len(comb):
-        both = [set(t.split("+")) == {f, s} for t, f, s in zip(comb.true, comb.found, comb.second)]
+        both = [set(t.split("+")) == {f, s}
+                for t, f, s in zip(comb.true, comb.found, comb.second)]
         first = [f in t.split("+") for t, f in zip(comb.true, comb.found)]
         print(f"combined: first effect one of the two {np.mean(first):.0%}, both found "
               f"{np.mean(both):.0%}")
@@ -315,7 +424,8 @@ def main(argv=None):
             print(f"{label}: moderate {mod.hit.mean():.0%} ({mod.hit.sum()}/{len(mod)}), "
                   f"moderate+strong {strong.hit.mean():.0%}, parameters within tolerance "
                   f"{strong[strong.hit].recovered.mean():.0%}, controls None "
-                  f"{(ctrl.found == 'None').mean():.0%} ({(ctrl.found == 'None').sum()}/{len(ctrl)})")
+                  f"{(ctrl.found == 'None').mean():.0%} "
+                  f"({(ctrl.found == 'None').sum()}/{len(ctrl)})")
 
 
 if __name__ == "__main__":

@@ -7,12 +7,15 @@ import math
 import numpy as np
 import pandas as pd
 from joblib import Parallel, delayed
+from threadpoolctl import threadpool_limits
 
 from .._checks import check_positive_int, check_series
-from ._effects import resolve_effects
+from ._effects import CandidateFailed, EffectFailed, call_hook, is_builtin, resolve_effects
 from ._fit import fit_effect
-from ._problem import GapProblem, SimulationFailed
+from ._problem import GapProblem
 from ._report import GapReport
+from ._signature import mean_std
+from ._units import parse_sample_dt
 from ._where import localise
 
 #: the gap is significant above MIN_GAP + NULL_FACTOR * (median leave-one-out gap of the runs)
@@ -27,6 +30,21 @@ Z_LOCAL = 8.0
 MIN_RESIDUAL_SHARE = 0.05
 
 MIN_SAMPLES = 2000
+#: one indicator is "off" when its gap exceeds IND_MIN_GAP + NULL_FACTOR * (its median
+#: leave-one-out gap among the runs): a mean squared z-score at least twice its null value,
+#: plus the null level's own scatter; or when one of its bins is Z_LOCAL spreads off.
+IND_MIN_GAP = 1.0
+
+
+def off_indicators(problem, evaluation):
+    """``{indicator: (gap, max |z|)}`` of the indicators still significantly off."""
+    out = {}
+    for name, gap in evaluation.gaps.items():
+        level = float(np.median(problem.null_by_indicator.get(name, [0.0])))
+        zmax = float(np.max(np.abs(evaluation.z[name]))) if evaluation.z[name].size else 0.0
+        if gap > IND_MIN_GAP + NULL_FACTOR * level or zmax > Z_LOCAL:
+            out[name] = (float(gap), zmax)
+    return out
 
 
 def _check_simulator(simulator):
@@ -75,7 +93,9 @@ def significance(problem):
     Yes when the gap exceeds ``MIN_GAP + NULL_FACTOR * level`` (``level``: the
     median gap of each simulator run against the others, leave-one-out) or
     when one bin is more than ``Z_LOCAL`` spreads off (a narrow discrepancy
-    such as a spectral line).  Both were calibrated on no-effect controls
+    such as a spectral line), or when the record has a spectral line that the
+    simulator runs lack (:func:`skdelay.gap._lines.find_lines`).  Both were calibrated on
+    no-effect controls
     (benchmarks/gap_withheld.py).
     """
     null = problem.null_gaps
@@ -83,38 +103,207 @@ def significance(problem):
     threshold = MIN_GAP + NULL_FACTOR * level
     gap = problem.before.gap
     max_z = _max_z(problem.before)
+    # a spectral line passed its own ensemble-calibrated test (skdelay.gap._lines)
+    lines = len(problem.lines)
     return {"gap_before": gap, "null_median": level, "null_max": float(np.max(null)),
-            "threshold": threshold, "max_z": max_z, "z_local": Z_LOCAL,
-            "significant": bool(gap > threshold or max_z > Z_LOCAL)}
+            "threshold": threshold, "max_z": max_z, "z_local": Z_LOCAL, "lines": lines,
+            "significant": bool(gap > threshold or max_z > Z_LOCAL or lines)}
 
 
-def _table(results, gap_before, problem, by_name):
-    rows = []
-    scale, offset = float(np.std(problem.real)), float(np.mean(problem.real))
-    for r in results:
-        eff = by_name[r["effect"]]
-        ok = r["status"] == "ok"
-        after = r["gap_after"] if ok else np.nan
-        shrink = 1.0 - max(after, 0.0) / gap_before if (ok and gap_before > 0) else np.nan
+#: a timebase factor agrees with the data when the dip and the spectral features move by it
+#: within this (relative) tolerance or three of their standard errors: a 1.08 factor on
+#: Mackey-Glass moves the dip by 1.3 samples, whose centre is good to ~0.2 samples (1 %)
+TB_TOL = 0.02
+#: a fitted delay agrees with the data's dip when the shifts differ by at most this many
+#: samples or DIP_Z of the dips' combined standard errors (the fit scans +-1.5 samples)
+DELAY_TOL = 1.0
+
+
+def _peak_frequency(x, sample_dt, nperseg=4096):
+    """Frequency of the highest spectral peak (parabolic interpolation of the log power)."""
+    from scipy import signal
+
+    from ._signature import zscore
+
+    nper = int(min(nperseg, max(64, len(x) // 4)))
+    f, p = signal.welch(zscore(x), fs=1.0 / sample_dt, nperseg=nper)
+    k = int(np.argmax(p[1:])) + 1
+    if 0 < k < p.size - 1:
+        a, b, c = np.log(p[k - 1:k + 2] + 1e-300)
+        den = a - 2 * b + c
+        if den < 0:
+            return float(f[k] + 0.5 * (a - c) / den * (f[1] - f[0])), float(f[1] - f[0])
+    return float(f[k]), float(f[1] - f[0])
+
+
+def consistency(problem, chain):
+    """Do the fitted parameters agree with independent evidence in the real data?
+
+    Returns a list of ``(effect, agrees, sentence)``.  A delay mismatch must
+    move the model's forecast-error dip to where the real data's own dip lies
+    (:func:`skdelay._dips.locate_dip`); a timebase factor must move the dip,
+    the spectral centroid and the main spectral peak by the same factor.
+    Other effects have no independent check here (their signatures are what
+    the fits used).
+    """
+    from ._signature import centroid
+    from ._where import DIP_Z, dip_comparable
+
+    out = []
+    dt = problem.sample_dt
+    for eff, params in chain:
+        if eff.name == "delay_mismatch" and problem.dip is not None:
+            tau0 = float(problem.simulator.params["tau"])
+            fit = (float(params["tau"]) - tau0) / dt
+            seen = problem.dip_real - problem.dip_sim
+            tol = max(DELAY_TOL, DIP_Z * problem.dip_spread)
+            comparable = dip_comparable(problem)
+            ok = bool(comparable and abs(fit - seen) <= tol)
+            out.append((eff.name, ok,
+                        f"the fitted delay moves the dip by {fit:+.2f} samples, the real data's "
+                        f"dip lies {seen:+.2f} samples from the model's (tolerance {tol:.2f})"
+                        + ("" if comparable else "; but the real data's dip is too shallow "
+                           "to place against the model's")))
+        elif eff.name == "timebase_mismatch":
+            factor = float(params["factor"])
+            checks = []
+            if dip_comparable(problem):
+                ratio = problem.dip_sim / problem.dip_real
+                se = ratio * problem.dip_spread / problem.dip_real
+                checks.append(("forecast-error dip", ratio, max(TB_TOL, 3 * se)))
+            n = problem.n_samples
+            c_sim = np.mean([centroid(x[:n], dt) for x in problem.base])
+            checks.append(("spectral centroid", centroid(problem.real, dt) / c_sim, TB_TOL))
+            f_real, df = _peak_frequency(problem.real, dt)
+            f_sim = np.mean([_peak_frequency(x[:n], dt)[0] for x in problem.base])
+            checks.append(("main spectral peak", f_real / f_sim,
+                           max(TB_TOL, 0.5 * df / max(f_sim, 1e-300))))
+            bad = [(name, r, tol) for name, r, tol in checks if abs(r - factor) > tol]
+            text = "; ".join(f"{name} moved by x{r:.3f}" for name, r, _ in checks)
+            out.append((eff.name, not bad,
+                        f"fitted factor {factor:.3f}; {text}"
+                        + (f" (disagree: {', '.join(b[0] for b in bad)})" if bad else "")))
+    return out
+
+
+def explanation(problem, sig, best, chain, after, lacking=None):
+    """``(status, reasons)``: is the gap fully explained by the fitted chain of effects?
+
+    ``"fully"`` only when, with the effects added, no indicator stays
+    significantly off (:func:`off_indicators`), the real data show no forecast
+    -error dip that the simulator lacks, and every parameter agrees with the
+    independent evidence (:func:`consistency`); ``"partly"`` otherwise when an
+    effect removes at least ``MIN_SHRINK`` of the gap; ``"not explained"``
+    when none does; ``"no gap"`` when the data are indistinguishable.
+    """
+    if not sig["significant"]:
+        return "no gap", []
+    reasons = [] if best is not None else ["no candidate effect removes enough of the gap"]
+    off = off_indicators(problem, after if after is not None else problem.before)
+    for name, (gap, zmax) in sorted(off.items(), key=lambda item: -item[1][0]):
+        reasons.append(f"{name} still off (gap {gap:.3g}, largest |z| {zmax:.1f})")
+    for dip in (problem.lacking_dips(chain) if lacking is None else lacking):
+        reasons.append(f"a second forecast-error dip at {dip.centre * problem.sample_dt:.4g} "
+                       "time units that the simulator lacks")
+    for _, ok, text in consistency(problem, chain):
+        if not ok:
+            reasons.append(text)
+    if best is None:
+        return "not explained", reasons
+    return ("partly" if reasons else "fully"), reasons
+
+
+def _residual_left(problem, after, threshold, gap_before):
+    """Is a second effect worth fitting on top of the best one?"""
+    return bool(off_indicators(problem, after)
+                or (after.gap > threshold and after.gap > MIN_RESIDUAL_SHARE * gap_before)
+                or _max_z(after) > Z_LOCAL)
+
+
+#: records are cross-validated only when each half keeps MIN_SAMPLES samples
+MIN_CV_SAMPLES = 2 * MIN_SAMPLES
+
+
+def cross_validate(effects, parts, parallel, chain=()):
+    """Fit each effect on the first half of the record, score it on the second.
+
+    ``chain``: ``(effect, params fitted on the first half)`` already in place
+    (the best effect, for the second round).  Returns ``(gap_before,
+    {name: gap_after})`` on the held-out half (NaN where the candidate failed
+    there): a flexible effect that only fits the noise of the half it saw
+    removes little of the other half's gap.
+    """
+    fit_part, score_part = parts
+    h_fit, h_score = fit_part.n_samples, score_part.n_samples
+
+    def moved(eff, params):
+        return call_hook(eff, "transfer", params, h_fit, h_score)
+
+    score_chain = [(e, moved(e, p)) for e, p in chain]
+    before = score_part.evaluate(score_chain, "full").gap if chain else score_part.before.gap
+    fits = parallel(delayed(fit_effect)(e, fit_part, list(chain)) for e in effects)
+    out = {}
+    for eff, res in zip(effects, fits):
+        out[eff.name] = (np.nan, {})
+        if not res.ok:
+            continue
         try:
-            text = eff.describe(r["params"], scale=scale, offset=offset,
-                                sample_dt=problem.sample_dt) if r["params"] else ""
-        except (KeyError, TypeError, ValueError):
-            text = ""
-        rows.append({"effect": r["effect"], "params": r["params"], "gap_before": gap_before,
-                     "gap_after": after, "shrink": shrink, "status": r["status"],
-                     "target": r["target"], "description": text, "n_evals": r["n_evals"],
-                     "seconds": r["seconds"], "_evaluation": r.get("evaluation")})
+            gap = score_part.evaluate(score_chain + [(eff, moved(eff, res.params))], "full").gap
+        except CandidateFailed:  # the held-out half makes this candidate fail: no score
+            continue
+        out[eff.name] = (float(gap), res.params)
+    return float(before), out
+
+
+def _table(results, gap_before, problem, by_name, cv=None):
+    """Candidates table, best first.
+
+    With ``cv = (gap_before_heldout, {name: (gap_after_heldout, params)})`` the
+    ``shrink`` and ``gap_after`` columns are the cross-validated ones
+    (``gap_after = gap_before * (1 - shrink)`` on the whole record's scale);
+    the in-sample numbers stay as ``gap_after_fit`` / ``shrink_fit``.
+    """
+    rows = []
+    offset, scale = mean_std(problem.real)
+    for r in results:
+        eff = by_name[r.effect]
+        fit_after = r.gap_after if r.ok else np.nan
+        fit_shrink = (1.0 - max(fit_after, 0.0) / gap_before
+                      if (r.ok and gap_before > 0) else np.nan)
+        shrink, after, cv_before, cv_after = fit_shrink, fit_after, np.nan, np.nan
+        if cv is not None and r.ok:
+            cv_before, scores = cv
+            cv_after = scores.get(r.effect, (np.nan, {}))[0]
+            shrink = (1.0 - max(cv_after, 0.0) / cv_before if cv_before > 0 else np.nan)
+            after = gap_before * (1.0 - shrink)
+        text = ""
+        if r.ok:
+            try:
+                # the built-in effects also name frequencies in Hz when the time unit is known
+                extra = {"time_unit": problem.time_unit} if is_builtin(eff) else {}
+                text = call_hook(eff, "describe", r.params, scale=scale, offset=offset,
+                                 sample_dt=problem.sample_dt, **extra)
+            except EffectFailed as exc:  # a user effect's describe() must not stop the report
+                text = f"(no description: {exc})"
+        rows.append({"effect": r.effect, "params": r.params, "gap_before": gap_before,
+                     "gap_after": after, "shrink": shrink, "status": r.status,
+                     "reason": r.reason, "target": r.target, "description": text,
+                     "gap_after_fit": fit_after, "shrink_fit": fit_shrink,
+                     "cv_gap_before": cv_before, "cv_gap_after": cv_after,
+                     "n_evals": r.n_evals, "seconds": r.seconds, "_evaluation": r.evaluation})
     df = pd.DataFrame(rows)
-    df["_failed"] = df["status"] != "ok"
-    df = df.sort_values(["_failed", "gap_after"], kind="stable").drop(columns="_failed")
+    # a candidate that failed on the held-out half ranks by its in-sample gap, after the rest
+    df["_failed"] = (df["status"] != "ok").astype(int) + df["gap_after"].isna().astype(int)
+    df["_key"] = df["gap_after"].fillna(df["gap_after_fit"])
+    df = df.sort_values(["_failed", "_key"], kind="stable").drop(columns=["_failed", "_key"])
     df = df.reset_index(drop=True)
     evaluations = list(df.pop("_evaluation"))
     return df, evaluations
 
 
 def diagnose_gap(real, simulator, *, sample_dt=1.0, effects=None, random_state=None,
-                 n_jobs=None, n_sims=6, combine=True, verbose=0):
+                 n_jobs=None, n_sims=6, combine=True, verbose=0, time_unit=None,
+                 cross_validated=True):
     """Diagnose the gap between measured data and a simulator.
 
     (1) *Where*: indicators (power spectrum, histogram, autocorrelation,
@@ -139,8 +328,10 @@ def diagnose_gap(real, simulator, *, sample_dt=1.0, effects=None, random_state=N
         A :mod:`skdelay.systems` system or any object with
         ``simulate(n_samples, *, sample_dt, random_state, **overrides)`` and a
         ``params`` dict (``tau`` in it enables the delay diagnostics).
-    sample_dt : float, default=1.0
-        Sampling step of ``real`` in the simulator's time unit.
+    sample_dt : float, str or (float, str), default=1.0
+        Sampling step of ``real`` in the simulator's time unit; with a unit
+        (``"1 us"``, ``(1.0, "us")``) that unit is the simulator's time unit
+        and frequencies are reported in Hz.
     effects : None or list of str / Effect
         Candidate effects; None = every registered effect (:data:`EFFECTS`).
     random_state : int, RandomState instance or None
@@ -156,6 +347,15 @@ def diagnose_gap(real, simulator, *, sample_dt=1.0, effects=None, random_state=N
         Fit a second effect on top of the best one when a significant gap remains.
     verbose : int, default=0
         joblib verbosity.
+    cross_validated : bool, default=True
+        Score every candidate on the half of the record it was not fitted on
+        (first half fit, second half score; records of at least 4000
+        samples): ``effects.shrink`` and ``gap_after`` are then the
+        cross-validated numbers, so a flexible effect cannot win by fitting
+        the noise.  The reported parameters are fitted on the whole record.
+    time_unit : {None, "s", "ms", "us", "ns", ...}, default=None
+        The simulator's time unit (same as a unit given with ``sample_dt``);
+        None: unknown, frequencies in cycles per time unit.
 
     Returns
     -------
@@ -183,18 +383,29 @@ def diagnose_gap(real, simulator, *, sample_dt=1.0, effects=None, random_state=N
     >>> round(report.effects.params[0]["frequency"], 3)
     0.2
     """
+    # the diagnosis multiplies many small matrices (tapers x bases, local fits): on a busy
+    # 2-core machine OpenBLAS's threads spin against each other and the line feature took
+    # 175 ms of CPU per run instead of 4.5 ms single-threaded (joblib's workers are limited
+    # by joblib itself)
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _diagnose(real, simulator, sample_dt=sample_dt, effects=effects,
+                         random_state=random_state, n_jobs=n_jobs, n_sims=n_sims,
+                         combine=combine, verbose=verbose, time_unit=time_unit,
+                         cross_validated=cross_validated)
+
+
+def _diagnose(real, simulator, *, sample_dt, effects, random_state, n_jobs, n_sims, combine,
+              verbose, time_unit, cross_validated):
     real = check_series(real, name="real", min_length=MIN_SAMPLES)
-    sample_dt = float(sample_dt)
-    if not (math.isfinite(sample_dt) and sample_dt > 0):
-        raise ValueError(f"sample_dt must be a positive time step, got {sample_dt}.")
+    sample_dt, time_unit = parse_sample_dt(sample_dt, time_unit)
     params = _check_simulator(simulator)
     _check_length(real.size, params, sample_dt)
     n_sims = check_positive_int(n_sims, name="n_sims", minimum=3)
     candidates = resolve_effects(effects)
     try:
         problem = GapProblem(real, simulator, sample_dt=sample_dt, n_sims=n_sims,
-                             random_state=random_state, n_jobs=n_jobs)
-    except SimulationFailed as exc:
+                             random_state=random_state, n_jobs=n_jobs, time_unit=time_unit)
+    except CandidateFailed as exc:
         raise ValueError(
             f"the simulator fails with its own parameters, so there is nothing to compare: {exc}"
         ) from exc
@@ -204,7 +415,12 @@ def diagnose_gap(real, simulator, *, sample_dt=1.0, effects=None, random_state=N
     parallel = Parallel(n_jobs=n_jobs, verbose=verbose)
     results = parallel(delayed(fit_effect)(e, problem) for e in candidates)
     by_name = {e.name: e for e in candidates}
-    table, evaluations = _table(results, gap_before, problem, by_name)
+    parts = problem.split() if (cross_validated and real.size >= MIN_CV_SAMPLES) else None
+    cv = None
+    if parts is not None and sig["significant"]:
+        ok = [by_name[r.effect] for r in results if r.ok]
+        cv = cross_validate(ok, parts, parallel) if ok else None
+    table, evaluations = _table(results, gap_before, problem, by_name, cv)
     best, chain = None, []
     top = table.iloc[0]
     if sig["significant"] and top["status"] == "ok" and top["shrink"] >= MIN_SHRINK:
@@ -212,19 +428,40 @@ def diagnose_gap(real, simulator, *, sample_dt=1.0, effects=None, random_state=N
         chain = [(by_name[best], dict(top["params"]))]
     combined = None
     after = evaluations[0] if chain else None
-    if (best is not None and combine and len(candidates) > 1
-            and ((after.gap > sig["threshold"] and after.gap > MIN_RESIDUAL_SHARE * gap_before)
-                 or _max_z(after) > Z_LOCAL)):
-        others = [e for e in candidates if e.name != best]
+    if best is not None and combine and len(candidates) > 1 and _residual_left(
+            problem, after, sig["threshold"], gap_before):
+        # led by the indicators that remain off: a localised leftover (a line, a clipped end)
+        # is handed to the effects that leave their mark there; a broadband best effect
+        # cannot mask it
+        off = off_indicators(problem, after)
+        others = [e for e in candidates if e.name != best
+                  and (not e.signature or not off or set(e.signature) & set(off))]
         more = parallel(delayed(fit_effect)(e, problem, chain) for e in others)
-        second, second_evals = _table(more, after.gap, problem, by_name)
+        cv2 = None
+        if cv is not None:
+            best_on_half = cv[1][best][1]
+            ok = [by_name[r.effect] for r in more if r.ok]
+            cv2 = cross_validate(ok, parts, parallel, [(by_name[best], best_on_half)]) \
+                if (ok and best_on_half) else None
+        second, second_evals = _table(more, after.gap, problem, by_name, cv2)
         s = second.iloc[0]
         if s["status"] == "ok" and s["shrink"] >= MIN_SHRINK:
+            total = (1.0 - (1.0 - top["shrink"]) * (1.0 - s["shrink"]) if cv2 is not None
+                     else 1.0 - max(s["gap_after"], 0.0) / gap_before)
             combined = {"effects": [best, s["effect"]], "params": [dict(top["params"]),
-                        dict(s["params"])], "gap_after": float(s["gap_after"]),
-                        "shrink": 1.0 - max(s["gap_after"], 0.0) / gap_before,
-                        "table": second}
+                        dict(s["params"])], "gap_after": float(gap_before * (1.0 - total)),
+                        "shrink": float(total), "table": second}
             chain = chain + [(by_name[s["effect"]], dict(s["params"]))]
             after = second_evals[0]
+    lacking = problem.lacking_dips(chain)
+    status, reasons = explanation(problem, sig, best, chain, after, lacking)
+    if best is not None and cv is not None:
+        # the report's headline numbers are the cross-validated ones
+        cv_shrink = combined["shrink"] if combined else float(top["shrink"])
+    else:
+        cv_shrink = None
     return GapReport.from_problem(problem, table=table, where=where, significance=sig,
-                                  best_effect=best, combined=combined, after=after)
+                                  best_effect=best, combined=combined, after=after,
+                                  cv_shrink=cv_shrink, cross_validated=cv is not None,
+                                  explained=status, reasons=reasons, lacking=lacking,
+                                  checks=consistency(problem, chain))

@@ -29,7 +29,65 @@ import numpy as np
 #: name -> effect class; filled by the effect modules and :func:`register_effect`.
 EFFECTS = {}
 
-_NAME = re.compile(r"^[a-z][a-z0-9_]*$")
+# full match only: ``re.match`` with ``$`` would accept a trailing newline ("ok_name\n")
+_NAME = re.compile(r"[a-z][a-z0-9_]*")
+
+
+class NotApplicable(ValueError):
+    """The effect cannot act on these data or this simulator (e.g. no delay parameter).
+
+    Raised by the effects' own hooks; the fit turns it into a failed candidate
+    with this message as the reason.
+    """
+
+
+class CandidateFailed(RuntimeError):
+    """A candidate (simulator + effect) could not be evaluated; the message says why."""
+
+
+class SimulationFailed(CandidateFailed):
+    """The simulator failed, diverged or returned unusable data."""
+
+
+class EffectFailed(CandidateFailed):
+    """A user-registered effect raised an exception or returned unusable data."""
+
+
+def check_name(name):
+    """Return ``name`` if it is a valid effect name, else raise ``ValueError``."""
+    if not isinstance(name, str) or not _NAME.fullmatch(name):
+        raise ValueError(
+            f"effect name {name!r} is not valid; use a lower-case identifier such as "
+            "'my_effect' (letters, digits, underscores, starting with a letter)."
+        )
+    return name
+
+
+def is_builtin(effect):
+    """True for the effects defined in :mod:`skdelay.gap` (their exceptions are bugs)."""
+    return type(effect).__module__.startswith("skdelay.gap.")
+
+
+def call_hook(effect, hook, *args, **kwargs):
+    """``effect.<hook>(*args, **kwargs)`` with user code fenced off.
+
+    A user-registered effect is user code: whatever it raises fails this
+    candidate only (:class:`EffectFailed` with the reason) and the diagnosis
+    goes on.  The built-in effects are not wrapped: an exception from them
+    other than :class:`NotApplicable` / :class:`CandidateFailed` is a bug and
+    must surface.
+    """
+    method = getattr(effect, hook)
+    if is_builtin(effect):
+        return method(*args, **kwargs)
+    try:
+        return method(*args, **kwargs)
+    except CandidateFailed:
+        raise
+    except Exception as exc:  # boundary of user code (a registered effect)
+        raise EffectFailed(
+            f"effect {effect.name!r}: {hook}() raised {type(exc).__name__}: {exc}"
+        ) from exc
 
 
 class Effect:
@@ -37,7 +95,13 @@ class Effect:
 
     Subclasses set the class attributes and implement :meth:`guess` plus
     either :meth:`apply` (``target = "observation"``) or :meth:`overrides`
-    (``target = "simulation"``).  Parameters are plain floats in the units
+    (``target = "simulation"``).  The other hooks have default
+    implementations that subclasses may override: :meth:`initial` (starting
+    parameters from the whole problem), :meth:`search` (the fit),
+    :meth:`search_bounds`, :meth:`check`, :meth:`transfer` (parameters
+    fitted on one half of the record for the other half) and
+    :meth:`describe`.  Whatever a user-registered effect raises fails that
+    candidate only, with the exception as the reason.  Parameters are plain floats in the units
     listed in ``units``; amplitudes of observation effects are relative to
     the standard deviation of the clean simulated signal, so they do not
     depend on gain or offset of the real data.
@@ -90,6 +154,10 @@ class Effect:
     log_params = ()
     units: ClassVar[dict] = {}
     description = ""
+    #: indicators on which the effect leaves its mark; the second round of a diagnosis
+    #: tries the effects whose signature covers an indicator that is still off
+    #: (empty: always tried)
+    signature: ClassVar[tuple] = ()
 
     # ----------------------------------------------------------------- API
     def guess(self, real, sim, sample_dt):
@@ -123,6 +191,33 @@ class Effect:
             f"effect {self.name!r} acts on the observation; use its apply(), not overrides()."
         )
 
+    def initial(self, problem):
+        """Starting parameters for a fit on ``problem`` (a :class:`GapProblem`).
+
+        Default: :meth:`guess` on the real series and the clean ensemble.
+        Effects that need the simulator (calibration runs) override this.
+        """
+        return self.guess(problem.real, np.array(problem.base), problem.sample_dt)
+
+    def search(self, problem, guess, objective):
+        """Fitted parameters: minimise ``objective(params)`` (the gap) starting at ``guess``.
+
+        Default: the bounded grid + Brent / Nelder-Mead search of
+        :func:`skdelay.gap._fit.generic_search` within :meth:`search_bounds`.
+        """
+        from ._fit import generic_search
+
+        return generic_search(self, problem, guess, objective)
+
+    def transfer(self, params, n_fit, n_score):
+        """Parameters fitted on the first ``n_fit`` samples, for the next ``n_score`` samples.
+
+        Cross-validation fits on the first half of the record and scores on
+        the second.  Default: the same values (stationary effects); a drift
+        overrides this to continue its ramp.
+        """
+        return dict(params)
+
     # ------------------------------------------------------------- helpers
     def search_bounds(self, guess, context):
         """Bounds of the local search around ``guess`` (default: the global ``bounds``).
@@ -133,13 +228,14 @@ class Effect:
         return dict(self.bounds)
 
     def check(self, params, simulator=None):
-        """Raise ``ValueError`` if the effect cannot act with ``simulator``."""
+        """Raise :class:`NotApplicable` if the effect cannot act with ``simulator``."""
 
-    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0):
+    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0, time_unit=None):
         """One phrase with the fitted parameters in physical units.
 
         ``scale`` and ``offset`` convert the clean signal's standard units into
-        the units of the real data (``value_real = offset + scale * z``).
+        the units of the real data (``value_real = offset + scale * z``);
+        ``time_unit`` (None: unknown) lets frequencies be named in Hz.
         """
         parts = []
         for key, value in params.items():
@@ -204,12 +300,7 @@ def register_effect(effect, *, overwrite=False):
             f"register_effect expects a subclass of skdelay.gap.Effect, got {effect!r}; "
             "derive your class from Effect and set name, bounds and apply/overrides."
         )
-    name = cls.name
-    if not isinstance(name, str) or not _NAME.match(name):
-        raise ValueError(
-            f"effect name {name!r} is not valid; use a lower-case identifier such as "
-            "'my_effect' (letters, digits, underscores, starting with a letter)."
-        )
+    name = check_name(cls.name)
     if cls.target not in ("observation", "simulation"):
         raise ValueError(
             f"effect {name!r} has target={cls.target!r}; use 'observation' or 'simulation'."
@@ -219,7 +310,8 @@ def register_effect(effect, *, overwrite=False):
         raise TypeError(f"effect {name!r} acts on the {cls.target} but does not define {hook}().")
     for key, bound in dict(cls.bounds).items():
         if len(bound) != 2 or not float(bound[0]) < float(bound[1]):
-            raise ValueError(f"effect {name!r}: bounds[{key!r}] must be (low, high) with low < high.")
+            raise ValueError(
+                f"effect {name!r}: bounds[{key!r}] must be (low, high) with low < high.")
     if name in EFFECTS and not overwrite and EFFECTS[name] is not cls:
         raise ValueError(
             f"an effect named {name!r} is already registered; pick another name or pass "
@@ -231,6 +323,7 @@ def register_effect(effect, *, overwrite=False):
 
 def unregister_effect(name):
     """Remove ``name`` from :data:`EFFECTS` and return its class."""
+    check_name(name)
     try:
         return EFFECTS.pop(name)
     except KeyError:
@@ -242,8 +335,10 @@ def unregister_effect(name):
 def get_effect(effect):
     """Return an effect instance from a name, class or instance (clear error otherwise)."""
     if isinstance(effect, Effect):
+        check_name(effect.name)
         return effect
     if isinstance(effect, type) and issubclass(effect, Effect):
+        check_name(effect.name)
         return effect()
     if isinstance(effect, str):
         if effect not in EFFECTS:

@@ -9,12 +9,15 @@ is then evaluated once on every indicator.
 
 from __future__ import annotations
 
+import numbers
 import time
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import optimize
+from threadpoolctl import threadpool_limits
 
-from ._problem import SimulationFailed
+from ._effects import CandidateFailed, NotApplicable, call_hook
 
 #: evaluation budgets (observation effects are cheap, simulation effects are not)
 GRID = {"observation": 7, "simulation": 5}
@@ -22,11 +25,39 @@ REFINE = {"observation": 6, "simulation": 3}
 NM_EVALS = {"observation": 25, "simulation": 12}
 
 
+@dataclass(frozen=True)
+class FitResult:
+    """Outcome of fitting one candidate effect.
+
+    ``status`` is ``"ok"`` or ``"failed"``; ``reason`` says why a candidate
+    failed (empty when ok).  ``gap_after`` is the gap of simulator + chain +
+    effect on every indicator (NaN when failed), ``gap_fast`` the search's
+    best gap on the fast indicators, ``gaps`` the gap per indicator.
+    ``params`` are the fitted values (the starting guess when the fit failed
+    after it, else empty).
+    """
+
+    effect: str
+    target: str
+    params: dict
+    gap_after: float = np.nan
+    status: str = "ok"
+    reason: str = ""
+    gap_fast: float = np.nan
+    gaps: dict = field(default_factory=dict)
+    n_evals: int = 0
+    seconds: float = 0.0
+    evaluation: object = field(default=None, repr=False, compare=False)
+
+    @property
+    def ok(self):
+        """True when the candidate was fitted and evaluated."""
+        return self.status == "ok"
+
+
 def initial_params(effect, problem):
-    """The effect's starting parameters (``initial(problem)`` hook, else ``guess``)."""
-    if hasattr(effect, "initial"):
-        return dict(effect.initial(problem))
-    return dict(effect.guess(problem.real, np.array(problem.base), problem.sample_dt))
+    """The effect's starting parameters (its :meth:`~Effect.initial` hook)."""
+    return dict(call_hook(effect, "initial", problem))
 
 
 class _Objective:
@@ -42,7 +73,7 @@ class _Objective:
         self.n_evals += 1
         try:
             gap = self.problem.evaluate(self.base_chain + [(self.effect, params)], "fast").gap
-        except SimulationFailed as exc:
+        except CandidateFailed as exc:  # this parameter value fails; the search goes on
             gap, self.last_error = np.inf, exc
         if gap < self.best[0]:
             self.best = (gap, dict(params))
@@ -106,7 +137,8 @@ def _search(effect, problem, guess, objective, space, keys, kind):
             a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
             if b > a:
                 optimize.minimize_scalar(f, bounds=(a, b), method="bounded",
-                                         options={"maxiter": REFINE[kind], "xatol": 1e-3 * (hi - lo)})
+                                         options={"maxiter": REFINE[kind],
+                                                  "xatol": 1e-3 * (hi - lo)})
     else:
         bounds = [(tr[k][0], tr[k][1]) for k in keys]
         simplex = [x0]
@@ -122,43 +154,48 @@ def _search(effect, problem, guess, objective, space, keys, kind):
 
 
 def fit_effect(effect, problem, base_chain=()):
-    """Fit ``effect`` on top of ``base_chain``; return a result dict (never raises).
+    """Fit ``effect`` on top of ``base_chain``; return a :class:`FitResult`.
 
-    Keys: ``effect``, ``params``, ``gap_after`` (all indicators), ``gap_fast``,
-    ``gaps`` (per indicator), ``evaluation`` (the final :class:`Evaluation`),
-    ``status`` (``"ok"`` or ``"failed: ..."``), ``n_evals``, ``seconds``.
+    A candidate that cannot act (:class:`NotApplicable`), whose simulator or
+    user-defined effect fails (:class:`CandidateFailed`) comes back with
+    ``status="failed"`` and the reason; other exceptions from the built-in
+    code are bugs and propagate.
     """
+    # joblib's workers inherit no thread limit here; BLAS threads spinning against each
+    # other made a 4e4-sample diagnosis 3 times slower with n_jobs=2 than with 1
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _fit(effect, problem, base_chain)
+
+
+def _fit(effect, problem, base_chain):
     t0 = time.perf_counter()
-    out = {"effect": effect.name, "target": effect.target, "params": {}, "gap_after": np.nan,
-           "gap_fast": np.nan, "gaps": {}, "evaluation": None, "status": "ok", "n_evals": 0,
-           "seconds": 0.0}
     objective = _Objective(effect, problem, base_chain)
+    guess = None
     try:
         guess = initial_params(effect, problem)
-        effect.check(guess, problem.simulator)
-        out["guess"] = dict(guess)
-        search = getattr(effect, "search", None)
-        if search is not None:
-            params = search(problem, guess, objective)
-        else:
-            params = generic_search(effect, problem, guess, objective)
+        call_hook(effect, "check", guess, problem.simulator)
+        params = call_hook(effect, "search", problem, dict(guess), objective)
+        if not isinstance(params, dict):
+            raise CandidateFailed(f"effect {effect.name!r}: search() returned "
+                                  f"{type(params).__name__}, not a dict of parameters.")
         if not np.isfinite(objective.best[0]) and objective.n_evals:
-            raise SimulationFailed(f"the simulator failed for every parameter value tried "
-                                   f"(last: {objective.last_error})")
+            raise CandidateFailed(f"the simulator failed for every parameter value tried "
+                                  f"(last: {objective.last_error})")
         final = problem.evaluate(list(base_chain) + [(effect, params)], "full")
         if not np.isfinite(final.gap):
-            raise SimulationFailed(f"the fitted effect gives a non-finite gap ({final.gaps}).")
-        out.update(params=_clean(params), gap_after=final.gap, gap_fast=objective.best[0],
-                   gaps=final.gaps, evaluation=final)
-    except (SimulationFailed, ValueError, TypeError, ArithmeticError, np.linalg.LinAlgError) as exc:
-        out["status"] = f"failed: {exc}"
-        if "guess" in out:
-            out["params"] = _clean(out["guess"])
-    out["n_evals"] = objective.n_evals
-    out["seconds"] = time.perf_counter() - t0
-    return out
+            raise CandidateFailed(f"the fitted effect gives a non-finite gap ({final.gaps}).")
+    except (NotApplicable, CandidateFailed) as exc:
+        return FitResult(effect=effect.name, target=effect.target,
+                         params=_clean(guess) if guess else {}, status="failed",
+                         reason=str(exc), n_evals=objective.n_evals,
+                         seconds=time.perf_counter() - t0)
+    return FitResult(effect=effect.name, target=effect.target, params=_clean(params),
+                     gap_after=final.gap, gap_fast=objective.best[0], gaps=final.gaps,
+                     n_evals=objective.n_evals, seconds=time.perf_counter() - t0,
+                     evaluation=final)
 
 
 def _clean(params):
-    return {k: (v if isinstance(v, str) or v is None else float(v)) for k, v in params.items()
+    """Plain floats (strings and None kept; flags such as ``detected`` dropped)."""
+    return {k: (float(v) if isinstance(v, numbers.Real) else v) for k, v in params.items()
             if not isinstance(v, (bool, np.bool_))}

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal
 
-from ._signature import zscore
+from ._signature import mean_std, zscore
 
 #: z-scores are capped at this value so that one bin cannot dominate a gap.
 Z_CAP = 30.0
@@ -47,8 +47,7 @@ class Indicator:
     def setup(self, real, sims, sample_dt, delay_samples):
         """Fix the binning from the real series and the clean simulated runs."""
         self.sample_dt = float(sample_dt)
-        self.real_mean = float(np.mean(real))
-        self.real_std = float(np.std(real))
+        self.real_mean, self.real_std = mean_std(real)
 
     def profile(self, z, blocks=False):
         """``(features, block_features or None)`` of a z-scored series."""
@@ -255,6 +254,43 @@ class Segment(Indicator):
         return [s for s in self.stats for _ in range(self.n_seg - 1)]
 
 
+class SpectralLines(Indicator):
+    """Per spectral line found in the real record (:func:`find_lines`): log10 of the
+    multitaper power at the line over the local continuum.
+
+    Only set up when the real record has lines the simulator lacks; its bins
+    are those lines, so a hum of a few cycles per record (invisible to the
+    Welch spectrum) enters the gap, the fits and the localisation table.
+    """
+
+    name = "spectral_line"
+    feature = "line power over the local continuum (log10)"
+    unit = "cycles per time unit"
+
+    def __init__(self, lines):
+        self.lines = list(lines)
+
+    def setup(self, real, sims, sample_dt, delay_samples):
+        from ._lines import LOG_VAR
+
+        super().setup(real, sims, sample_dt, delay_samples)
+        self.n_ref = len(real)
+        # a ratio of two multitaper estimates: twice the variance of one log power
+        self.var_floor = 2.0 * LOG_VAR
+
+    def profile(self, z, blocks=False):
+        from ._lines import line_feature
+
+        n = min(z.size, self.n_ref)
+        return np.array([line_feature(z[:n], line.frequency, self.sample_dt, self.n_ref)
+                         for line in self.lines]), None
+
+    def bounds(self):
+        f = np.array([line.frequency for line in self.lines])
+        w = np.array([line.half_width for line in self.lines])
+        return f - w, f + w
+
+
 class Levels(Indicator):
     """log10 of the fraction of distinct values (ADC resolution)."""
 
@@ -294,37 +330,97 @@ def _fe_curve(x, taus, *, m=2, n_queries=400, max_len=10_000):
     return np.asarray(curve.iloc[:, 0], dtype=float)
 
 
-def _dip(taus, values):
-    """Sub-sample dip position (samples) of a forecast-error curve."""
-    k = int(np.argmin(values))
-    if 0 < k < len(taus) - 1 and taus[k + 1] - taus[k] == 1 == taus[k] - taus[k - 1]:
-        y0, y1, y2 = values[k - 1], values[k], values[k + 1]
-        den = y0 - 2 * y1 + y2
-        if den > 0:
-            return float(taus[k] + 0.5 * (y0 - y2) / den)
-    return float(taus[k])
+#: the dip scan spans this many delays (a second feedback delay up to 2.5 x the model's)
+SCAN_SPAN = 2.5
+#: coarse steps per delay of the dip scan; the scan is refined to step 1 around its minima
+SCAN_STEPS = 15
 
 
-def dip_position(series, *, delay_samples=None, width=None):
-    """Forecast-error dip (samples) of one series.
+def fe_scan(series, delay_samples=None, *, max_len=10_000):
+    """Forecast-error curve for dip location: ``(taus, sigma_2(tau))``.
 
-    Scans ``delay_samples +- width`` (default ``max(6, delay / 4)``; at most 40
-    lags, then step 1 around the coarse minimum), or 1..200 without a delay.
+    Delays 1 .. ``SCAN_SPAN`` x the model's delay on a coarse grid (step
+    ``delay / SCAN_STEPS``), then step 1 around every local minimum of the
+    coarse curve (the dip the delay makes and any other, e.g. of a second
+    feedback delay), so that :func:`skdelay._dips.locate_dip` sees each dip
+    sample by sample.  Without a delay: 1..200, geometric.
     """
-    x = np.asarray(series, dtype=float)
-    if not delay_samples:
-        taus = tau_grid(None, len(x))
-        return _dip(taus, _fe_curve(x, taus))
-    t0 = round(delay_samples)
-    w = int(width or max(6, t0 // 4))
-    step = max(1, int(np.ceil(2 * w / 40)))
-    taus = np.arange(max(1, t0 - w), t0 + w + 1, step)
-    curve = _fe_curve(x, taus)
-    if step > 1:
-        k = int(taus[np.argmin(curve)])
-        taus = np.arange(max(1, k - step), k + step + 1)
-        curve = _fe_curve(x, taus)
-    return _dip(taus, curve)
+    x = np.asarray(series, dtype=float)[:max_len]
+    if delay_samples:
+        d0 = float(delay_samples)
+        step = max(1, round(d0 / SCAN_STEPS))
+        coarse = np.arange(1, int(np.ceil(SCAN_SPAN * d0)) + 3, step)
+    else:
+        step = 1
+        coarse = np.unique(np.geomspace(1, min(200, max(x.size // 20, 8)), 40).astype(int))
+    curve = _fe_curve(x, coarse)
+    k = np.arange(1, coarse.size - 1)
+    minima = k[(curve[k] <= curve[k - 1]) & (curve[k] <= curve[k + 1])]
+    minima = np.union1d(minima, [int(np.argmin(curve))]).astype(int)
+    dense = []
+    for i in minima:
+        lo, hi = coarse[max(i - 1, 0)], coarse[min(i + 1, coarse.size - 1)]
+        dense.extend(range(max(1, int(lo) - 2), int(hi) + 3))
+    extra = np.setdiff1d(np.unique(dense), coarse)
+    if extra.size:
+        curve = np.concatenate([curve, _fe_curve(x, extra)])
+        coarse = np.concatenate([coarse, extra])
+    order = np.argsort(coarse)
+    return coarse[order].astype(float), curve[order]
+
+
+def series_dip(series, delay_samples=None):
+    """:class:`skdelay._dips.Dip` of one series' forecast error (delays in samples)."""
+    from .._dips import locate_dip
+
+    taus, curve = fe_scan(series, delay_samples)
+    return locate_dip(taus, curve)
+
+
+#: a second dip must lie this far below the curve's baseline and below the simulator's curve
+#: at the same delay (relative): the few-percent undulations of sigma(tau) stay below it
+#: (skdelay._dips.MIN_RELATIVE_DEPTH: delay dips are 20-90 % deep)
+SECOND_DIP_DEPTH = 0.1
+
+
+def other_dips(taus, curve, main, reference=None, *, min_depth=SECOND_DIP_DEPTH):
+    """Dips of ``curve`` away from the ``main`` one (e.g. a second feedback delay).
+
+    A local minimum further than ``main.half_width + 2`` samples from the main
+    dip counts when it is at least ``min_depth`` (relative) below the curve's
+    median and below ``reference`` (the simulator's curve on the same grid),
+    and :func:`locate_dip` on the delays around it (out to the nearest local
+    maxima) finds an interior minimum.  Returns a list of ``Dip``.
+    """
+    from .._dips import locate_dip
+
+    out = []
+    curve = np.asarray(curve, dtype=float)
+    k = np.arange(1, taus.size - 1)
+    minima = k[(curve[k] < curve[k - 1]) & (curve[k] <= curve[k + 1])]
+    base = float(np.median(curve))
+    for i in minima:
+        if abs(taus[i] - main.centre) <= main.half_width + 2:
+            continue
+        lo = i
+        while lo > 0 and curve[lo - 1] >= curve[lo]:
+            lo -= 1
+        hi = i
+        while hi < taus.size - 1 and curve[hi + 1] >= curve[hi]:
+            hi += 1
+        lo, hi = max(0, lo - 2), min(taus.size, hi + 3)
+        if hi - lo < 5:
+            continue
+        # depths relative to the whole curve's baseline (the local window has no baseline)
+        depth = 1.0 - float(curve[i]) / base
+        lack = 1.0 - float(curve[i]) / float(reference[i]) if reference is not None else depth
+        if depth < min_depth or lack < min_depth:
+            continue
+        dip = locate_dip(taus[lo:hi], curve[lo:hi], min_relative_depth=0.0)
+        if dip.reason.startswith("the lowest error lies at the edge"):
+            continue
+        out.append(dip)
+    return out
 
 
 class ForecastError(Indicator):
@@ -342,9 +438,6 @@ class ForecastError(Indicator):
 
     def profile(self, z, blocks=False):
         return np.log10(np.maximum(_fe_curve(z, self.taus), 1e-12)), None
-
-    def dip(self, features):
-        return _dip(self.taus, features)
 
     def bounds(self):
         return (self.taus - 0.5) * self.sample_dt, (self.taus + 0.5) * self.sample_dt
@@ -387,7 +480,8 @@ class CrossPrediction(Indicator):
         out = np.zeros(self.n_regions**2)
         ratio = np.log10(chi / chi_self)
         # a cell the series never visits (e.g. a periodic run) carries no information
-        out[np.asarray(i * self.n_regions + j, dtype=int)] = np.where(np.isfinite(ratio), ratio, 0.0)
+        cell = np.asarray(i * self.n_regions + j, dtype=int)
+        out[cell] = np.where(np.isfinite(ratio), ratio, 0.0)
         return out, None
 
     def bounds(self):
@@ -422,10 +516,11 @@ def profiles(indicators, runs, blocks=False):
     return out
 
 
-def make_indicators(real, sims, sample_dt, delay_samples):
+def make_indicators(real, sims, sample_dt, delay_samples, lines=()):
     """Set-up instances of every indicator, keyed by name (fast ones first).
 
-    ``cross_prediction`` needs the delay (``delay_samples``) and is left out without it.
+    ``cross_prediction`` needs the delay (``delay_samples``) and is left out
+    without it; ``spectral_line`` is set up only when ``lines`` were found.
     """
     out = {}
     for cls in FAST + FULL:
@@ -434,6 +529,10 @@ def make_indicators(real, sims, sample_dt, delay_samples):
         ind = cls()
         ind.setup(real, sims, sample_dt, delay_samples)
         out[ind.name] = ind
+        if cls is Spectrum and lines:
+            ind = SpectralLines(lines)
+            ind.setup(real, sims, sample_dt, delay_samples)
+            out[ind.name] = ind
     return out
 
 
@@ -466,7 +565,8 @@ def ensemble_stats(features, indicator, blocks=None):
         w = indicator.smooth
         if w and v.size > 2 * w + 1:
             padded = np.pad(v, w, mode="edge")
-            pool[idx] = np.median(np.lib.stride_tricks.sliding_window_view(padded, 2 * w + 1), axis=1)
+            windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * w + 1)
+            pool[idx] = np.median(windows, axis=1)
         else:
             pool[idx] = np.median(v)
     nu0 = 4.0

@@ -14,7 +14,7 @@ import numpy as np
 from scipy import signal
 from scipy.interpolate import CubicSpline
 
-from ._effects import Effect, _fmt, register_effect
+from ._effects import Effect, NotApplicable, _fmt, register_effect
 from ._signature import (
     centroid,
     pile_ups,
@@ -25,6 +25,7 @@ from ._signature import (
     white_floor,
     zscore,
 )
+from ._units import format_frequency
 
 
 def _rng(random_state):
@@ -59,6 +60,7 @@ class MeasurementNoise(Effect):
     log_params = ("noise",)
     units: ClassVar[dict] = {"noise": "x signal std"}
     description = "white measurement noise (detector/amplifier)"
+    signature: ClassVar[tuple] = ("spectrum", "increments", "autocorrelation", "forecast_error")
 
     def guess(self, real, sim, sample_dt):
         v = min(white_floor(real, sim, sample_dt), 0.9)
@@ -97,6 +99,7 @@ class Quantization(Effect):
     log_params = ("step",)
     units: ClassVar[dict] = {"step": "x signal std", "phase": "steps"}
     description = "ADC quantisation"
+    signature: ClassVar[tuple] = ("levels", "increments", "histogram")
 
     def guess(self, real, sim, sample_dt):
         step, phase = quantization_step(real)
@@ -118,7 +121,7 @@ class Quantization(Effect):
         q = (np.round(z / step - phase) + phase) * step
         return mu + sd * q
 
-    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0):
+    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0, time_unit=None):
         step = params["step"] * scale
         return f"ADC step = {_fmt(step)} (units of real data) = {_fmt(params['step'])} x signal std"
 
@@ -148,15 +151,29 @@ class PeriodicInterference(Effect):
     stage = 30
     bounds: ClassVar[dict] = {"amplitude": (1e-3, 3.0)}
     log_params = ("amplitude",)
-    units: ClassVar[dict] = {"frequency": "cycles per time unit", "amplitude": "x signal std", "phase": "rad"}
+    units: ClassVar[dict] = {"frequency": "cycles per time unit", "amplitude": "x signal std",
+                             "phase": "rad"}
     description = "periodic interference (e.g. mains hum)"
+    signature: ClassVar[tuple] = ("spectral_line", "spectrum", "autocorrelation")
 
     def guess(self, real, sim, sample_dt):
         freq, amp, phase, _ = spectral_line(real, sim, sample_dt)
+        return self._params(freq, amp, phase)
+
+    def _params(self, freq, amp, phase):
+        # amp is in standard units of real = signal + hum: relative to the signal's std
         amp = min(amp, 1.3)
         rel = amp / np.sqrt(max(1.0 - amp**2 / 2.0, 0.05))
-        return {"frequency": freq, "amplitude": _clamp(rel, self.bounds["amplitude"]),
-                "phase": phase}
+        return {"frequency": float(freq), "amplitude": _clamp(rel, self.bounds["amplitude"]),
+                "phase": float(phase)}
+
+    def initial(self, problem):
+        """The strongest line of the whole-record multitaper search (any frequency from a few
+        cycles per record to Nyquist), else the Welch-based :meth:`guess`."""
+        if problem.lines:
+            line = problem.lines[0]
+            return self._params(line.frequency, line.amplitude, line.phase)
+        return super().initial(problem)
 
     def search_bounds(self, guess, context):
         g = guess["amplitude"]
@@ -169,7 +186,11 @@ class PeriodicInterference(Effect):
         wave = np.sin(2 * np.pi * params["frequency"] * t + params.get("phase", 0.0))
         return x + params["amplitude"] * (sd if sd > 0 else 1.0) * wave
 
-    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0):
+    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0, time_unit=None):
+        if time_unit is not None:
+            return (f"line at {format_frequency(params['frequency'], time_unit)}, amplitude "
+                    f"{_fmt(params['amplitude'] * scale)} (units of real data) = "
+                    f"{_fmt(params['amplitude'])} x signal std")
         return (f"line at {_fmt(params['frequency'])} cycles per time unit, amplitude "
                 f"{_fmt(params['amplitude'] * scale)} (units of real data) = "
                 f"{_fmt(params['amplitude'])} x signal std")
@@ -198,6 +219,7 @@ class Lowpass(Effect):
     log_params = ("cutoff",)
     units: ClassVar[dict] = {"cutoff": "cycles per time unit"}
     description = "finite detector bandwidth (low-pass)"
+    signature: ClassVar[tuple] = ("spectrum", "increments", "autocorrelation")
 
     def guess(self, real, sim, sample_dt):
         return {"cutoff": roll_off(real, sim, sample_dt)}
@@ -239,6 +261,7 @@ class Clipping(Effect):
     bounds: ClassVar[dict] = {"low": (-8.0, 1.0), "high": (-1.0, 8.0)}
     units: ClassVar[dict] = {"low": "signal std", "high": "signal std"}
     description = "saturation (clipping)"
+    signature: ClassVar[tuple] = ("histogram",)
 
     def guess(self, real, sim, sample_dt):
         frac_lo, frac_hi = pile_ups(real)
@@ -265,7 +288,7 @@ class Clipping(Effect):
         mu, sd = x.mean(), x.std()
         return np.clip(x, mu + params["low"] * sd, mu + params["high"] * sd)
 
-    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0):
+    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0, time_unit=None):
         sides = []
         for key, word in (("high", "above"), ("low", "below")):
             if np.isfinite(params[key]):
@@ -298,6 +321,7 @@ class Outliers(Effect):
     log_params = ("rate", "size")
     units: ClassVar[dict] = {"rate": "per sample", "size": "x signal std"}
     description = "outliers (isolated spikes)"
+    signature: ClassVar[tuple] = ("increments", "histogram", "spectrum")
 
     def guess(self, real, sim, sample_dt):
         found = spikes(real, sim, details=True)
@@ -309,14 +333,15 @@ class Outliers(Effect):
             # no sample stands out: only spikes too small to be seen are consistent
             largest = cut / 1.5
             if largest < self.bounds["size"][0]:
-                raise ValueError(
+                raise NotApplicable(
                     f"no isolated spikes in the real data (none is {cut:.2g} std away from "
                     "its neighbours), so outliers cannot explain the gap."
                 )
             return {"rate": 1e-3, "size": largest, "detected": False, "unseen": True}
         else:
             rate, size = 1e-3, 4.0
-        return {"rate": _clamp(rate, self.bounds["rate"]), "size": _clamp(size, self.bounds["size"]),
+        return {"rate": _clamp(rate, self.bounds["rate"]),
+                "size": _clamp(size, self.bounds["size"]),
                 "detected": detected}
 
     @staticmethod
@@ -346,7 +371,7 @@ class Outliers(Effect):
         return {"rate": (max(r / 3, 1e-5), min(r * 3, 0.1)),
                 "size": (max(s / 2, 1.0), min(s * 2, 50.0))}
 
-    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0):
+    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0, time_unit=None):
         return (f"spikes at a rate of {_fmt(params['rate'])} per sample, typical height "
                 f"{_fmt(params['size'] * scale)} (units of real data) = {_fmt(params['size'])} "
                 "x signal std")
@@ -386,6 +411,7 @@ class TimebaseMismatch(Effect):
     bounds: ClassVar[dict] = {"factor": (0.7, 1.4)}
     units: ClassVar[dict] = {"factor": "x nominal sampling step"}
     description = "time-base (sampling-rate) mismatch"
+    signature: ClassVar[tuple] = ("spectrum", "autocorrelation", "forecast_error", "segment")
 
     def guess(self, real, sim, sample_dt):
         n = len(real)

@@ -15,31 +15,41 @@ import numpy as np
 from joblib import Parallel, delayed
 
 from .._checks import check_random_state
+from ._effects import CandidateFailed, EffectFailed, SimulationFailed, call_hook
 from ._indicators import ensemble_stats, indicator_gap, make_indicators, profiles, zscores
+from ._lines import find_lines, spectrum_view
 from ._signature import zscore
 
-
-class SimulationFailed(RuntimeError):
-    """The simulator (or an effect) failed, diverged or returned unusable data."""
+__all__ = ["Evaluation", "GapProblem", "SimulationFailed", "run_simulator"]
 
 
 def run_simulator(simulator, n, sample_dt, seed, overrides):
     """``simulator.simulate`` with every failure turned into :class:`SimulationFailed`."""
+    what = f"simulate({_kw(overrides)})"
     try:
         x = simulator.simulate(n, sample_dt=sample_dt, random_state=int(seed), **overrides)
-    except Exception as exc:  # noqa: BLE001 - any simulator error fails this candidate only
-        raise SimulationFailed(f"simulate({_kw(overrides)}) failed: {type(exc).__name__}: {exc}")
-    x = np.asarray(x, dtype=float).reshape(-1)
-    return _check_run(x, n, f"simulate({_kw(overrides)})")
+        # converting the output is still user territory (a list of strings, a ragged list)
+        x = np.asarray(x, dtype=float)
+    except Exception as exc:  # boundary of user code: fails this candidate only
+        raise SimulationFailed(f"{what} failed: {type(exc).__name__}: {exc}") from exc
+    return check_run(x, n, what, SimulationFailed)
 
 
-def _check_run(x, n, what):
+def check_run(x, n, what, error=SimulationFailed):
+    """``x`` if it is a finite, non-constant 1-D series of at least ``n`` samples, else raise.
+
+    A 2-D output such as ``(n, 2)`` (two variables) is refused rather than
+    flattened: flattening would interleave the variables into a nonsense series.
+    """
+    if x.ndim != 1:
+        raise error(f"{what} returned an array of shape {x.shape}; a scalar series of shape "
+                    f"(n,) is needed (select the observed variable).")
     if x.size < n:
-        raise SimulationFailed(f"{what} returned {x.size} samples instead of {n}.")
+        raise error(f"{what} returned {x.size} samples instead of {n}.")
     if not np.all(np.isfinite(x)):
-        raise SimulationFailed(f"{what} diverged (non-finite values).")
+        raise error(f"{what} returned non-finite values (NaN or inf: diverged?).")
     if np.ptp(x) == 0:
-        raise SimulationFailed(f"{what} returned a constant series (dead dynamics).")
+        raise error(f"{what} returned a constant series (dead dynamics).")
     return x
 
 
@@ -87,11 +97,26 @@ class GapProblem:
     random_state : int, RandomState or None
     n_jobs : int or None
         joblib workers for the clean ensemble.
+    time_unit : str or None
+        The simulator's time unit (for reports in Hz); None: unknown.
+    runs : list of ndarray or None
+        Clean runs to use instead of simulating them (the halves of a
+        cross-validation split reuse the full problem's runs).
+    scan_dips : bool, default=True
+        Locate the forecast-error dips (skipped for a held-out half, which is
+        only scored).
+    lines : list of Line or None
+        Spectral lines to use instead of searching them (the halves of a
+        split use the whole record's: a hum of 3 cycles per record has 1.5
+        per half; the line's frequency is a signature read off the whole
+        record, its amplitude is what the halves fit and score).
     """
 
     def __init__(self, real, simulator, *, sample_dt=1.0, n_sims=6, search_sims=2,
-                 search_length=10_000, random_state=None, n_jobs=None):
+                 search_length=10_000, random_state=None, n_jobs=None, time_unit=None,
+                 runs=None, scan_dips=True, lines=None):
         self.real = real
+        self.time_unit = time_unit
         self.simulator = simulator
         self.sample_dt = float(sample_dt)
         self.n_samples = n = len(real)
@@ -102,11 +127,16 @@ class GapProblem:
         self.search_length = int(min(n, search_length))
         tau = (getattr(simulator, "params", None) or {}).get("tau")
         self.delay_samples = float(tau) / self.sample_dt if tau is not None else None
-        runs = Parallel(n_jobs=n_jobs)(
-            delayed(run_simulator)(simulator, n, self.sample_dt, s, {}) for s in self.sim_seeds
-        )
+        if runs is None:
+            runs = Parallel(n_jobs=n_jobs)(
+                delayed(run_simulator)(simulator, n, self.sample_dt, s, {})
+                for s in self.sim_seeds)
         self.base = runs
-        self.indicators = make_indicators(real, runs, self.sample_dt, self.delay_samples)
+        # lines anywhere from a few cycles per record to Nyquist (a 50 Hz hum at 1 MHz)
+        self.lines = find_lines(real, runs, self.sample_dt) if lines is None else list(lines)
+        self.spectrum_view = spectrum_view(real, runs[:2], self.sample_dt) if scan_dips else None
+        self.indicators = make_indicators(real, runs, self.sample_dt, self.delay_samples,
+                                          self.lines)
         self.real_z = zscore(real)
         self.real_features = {k: ind.profile(self.real_z, database=zscore(runs[0]))[0]
                               if ind.paired else ind.profile(self.real_z)[0]
@@ -114,11 +144,51 @@ class GapProblem:
         self.base_features = profiles(self.indicators, runs, blocks=True)
         self.base_var = {k: ensemble_stats(f, self.indicators[k], b)[1]
                          for k, (f, b) in self.base_features.items()}
-        fe = self.indicators["forecast_error"]
-        self.dip_real = fe.dip(self.real_features["forecast_error"])
-        self.dip_sim = float(np.mean([fe.dip(f) for f in self.base_features["forecast_error"][0]]))
+        self._scan_dips(scan_dips)
         self.before = self._compare({k: f for k, (f, _) in self.base_features.items()}, runs)
         self.null_gaps = self._null_gaps()
+
+    #: simulator runs whose forecast-error curves give the model's dip and its spread
+    DIP_RUNS = 2
+
+    def _scan_dips(self, scan=True):
+        """Forecast-error dips of the real data and of the clean runs (step 1 near the dips).
+
+        Sets ``dip`` (the real data's :class:`~skdelay._dips.Dip`), ``sim_dips``,
+        ``dip_real`` / ``dip_sim`` (centres, samples), ``dip_spread`` (the
+        centre's uncertainty: bootstrap standard errors and the runs' scatter),
+        ``dip_curves`` (taus, real, mean simulated) and ``second_dips`` (dips of
+        the real data away from the main one that the simulator lacks).
+        """
+        from .._dips import locate_dip
+        from ._indicators import fe_scan, other_dips
+
+        if not (self.delay_samples and scan):
+            self.dip = None
+            self.sim_dips, self.second_dips, self.dip_curves = [], [], None
+            self.dip_real = self.dip_sim = self.dip_spread = None
+            return
+        from ._indicators import _fe_curve
+
+        taus, real_curve = fe_scan(self.real, self.delay_samples)
+        sim_curves = [_fe_curve(x, taus) for x in self.base[: self.DIP_RUNS]]
+        # the delay's dip is sought near the model's delay (+-max(6, delay / 4) samples, as
+        # wide as a delay mismatch the fit considers): a strong hum makes a deeper dip of its
+        # own at a quarter of its period, which is not the delay
+        d0 = self.delay_samples
+        near = np.abs(taus - d0) <= max(6.0, d0 / 4.0)
+        if near[int(np.argmin(real_curve))]:
+            near[:] = True  # the deepest dip is the delay's: the whole curve gives the baseline
+        self.dip = locate_dip(taus[near], real_curve[near])
+        self.sim_dips = [locate_dip(taus[near], c[near]) for c in sim_curves]
+        centres = np.array([d.centre for d in self.sim_dips])
+        scatter = float(centres.std(ddof=1)) if centres.size > 1 else 0.0
+        se = np.hypot(self.dip.centre_se, np.mean([d.centre_se for d in self.sim_dips]))
+        self.dip_real, self.dip_sim = self.dip.centre, float(centres.mean())
+        self.dip_spread = float(np.hypot(se, scatter))
+        mean_sim = np.mean(sim_curves, axis=0)
+        self.dip_curves = (taus, real_curve, mean_sim)
+        self.second_dips = other_dips(taus, real_curve, self.dip, reference=mean_sim)
 
     # ----------------------------------------------------------------- runs
     def _effect_seed(self, j, name):
@@ -131,7 +201,7 @@ class GapProblem:
                           key=lambda item: item[0].stage)
         overrides = {}
         for eff, params in sim_part:
-            overrides.update(eff.overrides(params, self.simulator))
+            overrides.update(call_hook(eff, "overrides", params, self.simulator))
         if overrides:
             if tier == "fast":
                 n, seeds = self.search_length, self.sim_seeds[: self.search_sims]
@@ -144,9 +214,10 @@ class GapProblem:
         for j, x in enumerate(runs):
             n_run = x.size
             for eff, params in obs_part:
-                x = np.asarray(eff.apply(x, params, sample_dt=self.sample_dt,
-                                         random_state=self._effect_seed(j, eff.name)), dtype=float)
-                _check_run(x, 16, f"effect {eff.name!r} with {params}")
+                y = call_hook(eff, "apply", x, params, sample_dt=self.sample_dt,
+                              random_state=self._effect_seed(j, eff.name))
+                x = check_run(np.asarray(y, dtype=float), 16,
+                              f"effect {eff.name!r}.apply with {params}", EffectFailed)
             out.append(x[:n_run])  # never longer than the run (a slower time base stretches it)
         return out
 
@@ -158,7 +229,7 @@ class GapProblem:
         return {k: f[0] for k, (f, _) in feats.items()}
 
     def evaluate(self, chain, tier="full", keep_runs=False):
-        """:class:`Evaluation` of real vs simulator + chain; ``tier='fast'`` skips costly indicators."""
+        """:class:`Evaluation` of real vs simulator + chain (``tier='fast'``: cheap indicators)."""
         runs = self.ensemble(chain, tier)
         names = [k for k, ind in self.indicators.items() if tier == "full" or ind.tier == "fast"]
         feats = profiles({k: self.indicators[k] for k in names}, runs)
@@ -189,15 +260,78 @@ class GapProblem:
         """Gap of each clean run against the others (leave-one-out): the no-gap distribution."""
         k_runs = len(self.base)
         out = []
+        self.null_by_indicator = {k: [] for k in self.base_features}
         for j in range(k_runs):
             total = 0.0
             for k, (f, blocks) in self.base_features.items():
                 others = np.delete(f, j, axis=0)
                 ob = None if blocks is None else np.delete(blocks, j, axis=0)
                 mean, var = _spread(others, ensemble_stats(others, self.indicators[k], ob)[1])
-                total += indicator_gap(zscores(f[j], mean, var, others.shape[0]))
+                gap = indicator_gap(zscores(f[j], mean, var, others.shape[0]))
+                self.null_by_indicator[k].append(gap)
+                total += gap
             out.append(total)
         return np.array(out)
+
+    def lacking_dips(self, chain):
+        """The second dips of the real data that simulator + ``chain`` still lack.
+
+        A dip "the simulator lacks" may come from an effect (a strong hum makes
+        one at a quarter of its period): two runs with the chain are scanned at
+        the delays around each dip and the dip counts only if the real curve
+        still lies ``SECOND_DIP_DEPTH`` below theirs there.
+        """
+        from ._indicators import SECOND_DIP_DEPTH, _fe_curve
+
+        if not self.second_dips:
+            return []
+        if not chain:
+            return list(self.second_dips)
+        taus, real_curve, _ = self.dip_curves
+        try:
+            runs = self.ensemble(chain, "full")[: self.DIP_RUNS]
+        except CandidateFailed:
+            return list(self.second_dips)
+        out = []
+        for dip in self.second_dips:
+            k = int(np.argmin(np.abs(taus - dip.tau_min)))
+            ref = np.mean([_fe_curve(x, [taus[k]])[0] for x in runs])
+            if 1.0 - real_curve[k] / ref >= SECOND_DIP_DEPTH:
+                out.append(dip)
+        return out
+
+    def split(self):
+        """``(first, second)``: problems on the two halves of the record (same seeds and
+        clean runs, cut likewise) for cross-validation: fit on one, score on the other."""
+        h = self.n_samples // 2
+        parts = []
+        for lo, scan in ((0, True), (h, False)):
+            p = GapProblem.__new__(GapProblem)
+            p._init_part(self, lo, lo + h, scan)
+            parts.append(p)
+        return tuple(parts)
+
+    def _init_part(self, parent, lo, hi, scan):
+        GapProblem.__init__(
+            self, parent.real[lo:hi], parent.simulator, sample_dt=parent.sample_dt,
+            n_sims=len(parent.base), search_sims=parent.search_sims,
+            search_length=parent.search_length, random_state=0, time_unit=parent.time_unit,
+            runs=[x[lo:hi] for x in parent.base], scan_dips=scan, lines=parent.lines)
+        # the parent's seeds: the halves' evaluations share the parent's random numbers
+        self.sim_seeds, self.effect_seed = parent.sim_seeds, parent.effect_seed
+
+    def line_contribution(self):
+        """Gap removed by subtracting the strongest spectral line (its signature estimate)."""
+        if not self.lines:
+            return 0.0
+        from ._effects import get_effect
+
+        hum = get_effect("periodic_interference")
+        try:
+            after = self.evaluate([(hum, hum.initial(self))], "full").gap
+        except CandidateFailed:
+            return 0.0
+        return float(max(self.before.gap - after, 0.0))
 
     def fast_gap_before(self):
         """Gap before any effect on the fast indicators only (the search objective's scale)."""

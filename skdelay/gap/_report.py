@@ -9,8 +9,16 @@ import numpy as np
 import pandas as pd
 
 from ._effects import EFFECTS, _fmt
+from ._signature import mean_std
+from ._units import format_frequency, frequency_unit, time_unit_name
 
 _PANELS = ("spectrum", "histogram", "autocorrelation", "forecast_error", "segment")
+#: which panel shows a fitted effect best (the one figure of the report's head)
+KEY_PANEL = {"periodic_interference": "spectrum", "measurement_noise": "spectrum",
+             "dynamical_noise": "spectrum", "lowpass": "spectrum",
+             "timebase_mismatch": "spectrum", "clipping": "histogram",
+             "quantization": "histogram", "outliers": "histogram",
+             "parameter_drift": "segment", "delay_mismatch": "forecast_error"}
 
 
 @dataclass
@@ -27,7 +35,12 @@ class GapReport:
         One row per candidate, best first: ``effect``, ``params`` (fitted
         values), ``gap_before``, ``gap_after``, ``shrink``
         (``1 - gap_after / gap_before``), ``status`` (``"ok"`` or
-        ``"failed: ..."``), ``target``, ``description`` (fitted parameters in
+        ``"failed"``), ``reason`` (why it failed), ``target``, ``gap_after_fit`` /
+        ``shrink_fit`` (in-sample, whole record), ``cv_gap_before`` /
+        ``cv_gap_after`` (held-out half).  With cross-validation (records of at
+        least 4000 samples) ``shrink`` is the held-out half's
+        ``1 - cv_gap_after / cv_gap_before`` and ``gap_after = gap_before * (1 -
+        shrink)``; ``params`` are fitted on the whole record,, ``description`` (fitted parameters in
         physical units), ``n_evals``, ``seconds``.
     where : pandas.DataFrame
         Localised discrepancies, largest first: ``indicator``, ``feature``,
@@ -42,7 +55,9 @@ class GapReport:
         Gap between real data and the simulator (sum over indicators of the
         mean squared z-score in excess of 1).
     gap_after, shrink : float
-        Gap left by the best effect (or combination) and the fraction removed.
+        Gap left by the best effect (or combination) and the fraction removed
+        (cross-validated when ``info["cross_validated"]``; the in-sample
+        fraction is ``info["shrink_fit"]``).
     significance : dict
         ``gap_before``, ``null_median``, ``null_max`` (leave-one-out gaps of
         the simulator runs among themselves), ``threshold``, ``significant``.
@@ -52,6 +67,16 @@ class GapReport:
     profiles : dict of DataFrame
         Per indicator: bin bounds, ``real``, ``sim_mean``, ``sim_std`` and
         ``fitted_mean`` (simulator + best effect) — what :meth:`plot` draws.
+    explained : {"fully", "partly", "not explained", "no gap"}
+        ``"fully"`` only when, with the best effect (or combination) added, no
+        indicator stays significantly off, the real data have no forecast-error
+        dip the simulator lacks and the fitted parameters agree with the
+        independent evidence (``checks``); ``"partly"`` when an effect removes
+        part of the gap but not all of it.
+    reasons : list of str
+        Why the gap is not fully explained (what remains).
+    checks : list of (effect, bool, str)
+        The independent-evidence checks of the fitted parameters.
     """
 
     best_effect: str | None
@@ -65,9 +90,15 @@ class GapReport:
     residual_where: pd.DataFrame | None = None
     profiles: dict = field(default_factory=dict, repr=False)
     info: dict = field(default_factory=dict)
+    explained: str = "no gap"
+    reasons: list = field(default_factory=list)
+    checks: list = field(default_factory=list)
 
     @classmethod
-    def from_problem(cls, problem, *, table, where, significance, best_effect, combined, after):
+    def from_problem(cls, problem, *, table, where, significance, best_effect, combined, after,
+                     lacking=(),
+                     explained="no gap", reasons=(), checks=(), cv_shrink=None,
+                     cross_validated=False):
         """Assemble the report from a solved :class:`GapProblem`."""
         from ._where import localise
 
@@ -84,17 +115,28 @@ class GapReport:
             profiles[name] = df
         gap_before = float(problem.before.gap)
         gap_after = float(after.gap) if after is not None else gap_before
+        info_cv = {"shrink_fit": 1.0 - max(gap_after, 0.0) / gap_before if gap_before > 0
+                   else 0.0, "cross_validated": bool(cross_validated)}
+        if cv_shrink is not None:
+            gap_after = gap_before * (1.0 - cv_shrink)
         sim = problem.simulator
         info = {"n_samples": problem.n_samples, "sample_dt": problem.sample_dt,
-                "real_mean": float(np.mean(problem.real)), "real_std": float(np.std(problem.real)),
+                "time_unit": problem.time_unit,
+                "real_mean": mean_std(problem.real)[0], "real_std": mean_std(problem.real)[1],
                 "simulator": type(sim).__name__, "simulator_params": dict(sim.params),
                 "n_sims": len(problem.base), "dip_real": problem.dip_real,
-                "dip_sim": problem.dip_sim}
+                "dip_sim": problem.dip_sim, "dip_spread": problem.dip_spread,
+                "dip_curves": problem.dip_curves, "spectrum_view": problem.spectrum_view,
+                "lines": [(ln.frequency, ln.amplitude, ln.z) for ln in problem.lines],
+                "sim_dip_centres": [d.centre for d in problem.sim_dips],
+                "second_dips": [d.centre for d in problem.second_dips], **info_cv}
         return cls(best_effect=best_effect, effects=table, where=where, gap_before=gap_before,
                    gap_after=gap_after, shrink=1.0 - max(gap_after, 0.0) / gap_before
                    if gap_before > 0 else 0.0, significance=significance, combined=combined,
-                   residual_where=localise(problem, after) if after is not None else None,
-                   profiles=profiles, info=info)
+                   residual_where=(localise(problem, after, lacking=lacking)
+                                   if after is not None else None),
+                   profiles=profiles, info=info, explained=explained, reasons=list(reasons),
+                   checks=list(checks))
 
     # ---------------------------------------------------------------- text
     def _where_phrase(self, df, k=3):
@@ -105,11 +147,98 @@ class GapReport:
         return "; ".join(parts)
 
     def summary(self):
-        """A paragraph for a lab book: where, which effect (fitted values, units), shrink, residual."""
+        """Three sentences (where / which / how far), then a paragraph with the details.
+
+        Each sentence is conditioned on the numbers: "explains" only when the
+        gap is fully explained (:attr:`explained`), "part of it" with the
+        percentage otherwise.
+        """
+        return self.headline() + "\n\n" + self._details()
+
+    # ------------------------------------------------------------ headline
+    def _freq(self, f):
+        return format_frequency(f, self.info.get("time_unit"))
+
+    def _time_unit(self):
+        return time_unit_name(self.info.get("time_unit"))
+
+    def _where_words(self, r):
+        """One row of ``where`` in plain words."""
+        tu = self._time_unit()
+        side = "higher" if r["z"] > 0 else "lower"
+        feature, ind = r["feature"], r["indicator"]
+        if feature == "spectral line":
+            f = r["peak"] / (frequency_unit(self.info.get("time_unit"))[0])
+            return f"a spectral line at {self._freq(f)} that the simulator lacks"
+        if feature == "dip position":
+            return (f"the position of the forecast-error dip ({_fmt(r['real_value'])} {tu} in the "
+                    f"real data, {_fmt(r['sim_value'])} {tu} simulated)")
+        if feature == "second dip":
+            return f"a second forecast-error dip at {_fmt(r['peak'])} {tu} that the simulator lacks"
+        if ind == "spectrum":
+            return (f"the power spectrum between {_fmt(r['low'])} and {_fmt(r['high'])} "
+                    f"{r['unit']} (real power {side})")
+        if ind == "histogram":
+            return (f"the distribution of values between {_fmt(r['low'])} and {_fmt(r['high'])} "
+                    f"(units of the data; real {side})")
+        if ind == "segment":
+            return (f"the {feature.replace('segment ', '')} between t = {_fmt(r['low'])} and "
+                    f"{_fmt(r['high'])} {tu} (real {side}: the record is not stationary)")
+        if ind == "increments":
+            return f"the distribution of one-step increments (real {side})"
+        if ind == "levels":
+            return f"the number of distinct values (real {side}: another resolution)"
+        return f"the {feature} between {_fmt(r['low'])} and {_fmt(r['high'])} {r['unit']}"
+
+    def headline(self):
+        """Where the data differ, which effect explains it (or how much of it), how far."""
+        s = self.significance
+        thr = s["threshold"]
+        if not s["significant"]:
+            return (f"Real and simulated data are indistinguishable: the gap {self.gap_before:.3g} "
+                    f"is within the no-gap threshold {thr:.3g} of simulator runs among "
+                    "themselves. No effect is needed. Nothing remains to be explained.")
+        if len(self.where):
+            top = self._where_words(self.where.iloc[0])
+            where = f"Real and simulated data differ most in {top}."
+        else:
+            where = (f"Real and simulated data differ (gap {self.gap_before:.3g}), spread over "
+                     "many "
+                     "bins with none far off on its own.")
+        ok = self.effects[self.effects.status == "ok"]
+        row = self.effects.iloc[0]
+        cv = " cross-validated" if self.info.get("cross_validated") else ""
+        if self.best_effect is None:
+            best = (f" (the best, {ok.iloc[0]['effect']}, removes "
+                    f"{100 * max(ok.iloc[0]['shrink'], 0):.0f} %)") if len(ok) else ""
+            which = f"None of the library's effects accounts for it{best}."
+            far = (f"The gap is {self.gap_before:.3g}, {self.gap_before / thr:.3g} times the "
+                   f"no-gap threshold {thr:.3g}.")
+            return f"{where} {which} {far}"
+        names = [row["effect"]] + ([self.combined["effects"][1]] if self.combined else [])
+        label = (f"The effects {names[0]} and {names[1]}" if len(names) > 1
+                 else f"The effect {names[0]}")
+        if self.explained == "fully":
+            verb = "explain" if len(names) > 1 else "explains"
+            which = f"{label} {verb} it: {row['description']}."
+        else:
+            which = (f"{label} account{'' if len(names) > 1 else 's'} for part of it "
+                     f"({100 * self.shrink:.0f} %); the rest lies outside the effect library.")
+        state = "within" if self.gap_after <= thr else "still above"
+        far = (f"With {'them' if len(names) > 1 else 'it'} the gap falls from "
+               f"{self.gap_before:.3g} to {self.gap_after:.3g} ({100 * self.shrink:.0f} % "
+               f"removed{cv}), {state} the no-gap threshold {thr:.3g}.")
+        return f"{where} {which} {far}"
+
+    def _details(self):
+        """The lab-book paragraph: data, discrepancies, fitted values, runner-up, residual."""
         s = self.significance
         i = self.info
-        head = (f"Real data ({i['n_samples']} samples, sample_dt = {_fmt(i['sample_dt'])}) versus "
-                f"{i['simulator']} ({', '.join(f'{k}={_fmt(v)}' for k, v in i['simulator_params'].items())}; "
+        unit = f" {i['time_unit']}" if i.get("time_unit") else ""
+        params = ", ".join(f"{k}={_fmt(v)}" for k, v in i["simulator_params"].items())
+        head = (f"Real data ({i['n_samples']} samples, sample_dt = {_fmt(i['sample_dt'])}{unit}) "
+                "versus "
+                f"{i['simulator']} ({params}; "
                 f"{i['n_sims']} runs): gap {self.gap_before:.3g} against a no-gap level of "
                 f"{s['null_median']:.2g} (runs among themselves; threshold {s['threshold']:.3g}).")
         if not s["significant"]:
@@ -123,76 +252,219 @@ class GapReport:
             best = ok.iloc[0] if len(ok) else None
             text.append(
                 "No candidate effect explains the gap"
-                + (f" (best: {best['effect']}, removes {100 * best['shrink']:.0f}%)" if best is not None else "")
+                + (f" (best: {best['effect']}, removes {100 * best['shrink']:.0f}%)"
+                   if best is not None else "")
                 + "; the cause lies outside the effect library or in the model itself.")
+            if self.reasons[1:] or len(self.where):
+                text.append(self._remaining())
             return " ".join(text)
         row = self.effects.iloc[0]
         desc = EFFECTS[row["effect"]].description if row["effect"] in EFFECTS else row["effect"]
-        text.append(f"Best explanation: {row['effect']} ({desc}): {row['description']}. It removes "
-                    f"{100 * row['shrink']:.0f}% of the gap ({row['gap_before']:.3g} -> "
-                    f"{row['gap_after']:.3g}).")
+        names = [row["effect"]] + ([self.combined["effects"][1]] if self.combined else [])
+        if self.explained == "fully":
+            text.append(f"Best explanation: {row['effect']} ({desc}): {row['description']}. "
+                        f"It removes {100 * row['shrink']:.0f}% of the gap "
+                        f"({row['gap_before']:.3g} -> {row['gap_after']:.3g}).")
+        else:
+            text.append(f"Partly explained ({100 * self.shrink:.0f} %) by "
+                        f"{' + '.join(names)} ({row['description']}); the rest lies outside "
+                        "the effect library.")
         if len(ok) > 1:
             nxt = ok.iloc[1]
             text.append(f"Runner-up: {nxt['effect']} ({100 * nxt['shrink']:.0f}%).")
         if self.combined is not None:
             c = self.combined
             t = c["table"].iloc[0]
-            text.append(f"A second effect on top, {c['effects'][1]} ({t['description']}), brings the "
-                        f"gap to {c['gap_after']:.3g} ({100 * c['shrink']:.0f}% removed in total).")
+            text.append(f"A second effect on top, {c['effects'][1]} ({t['description']}), brings "
+                        f"the gap to {c['gap_after']:.3g} ({100 * c['shrink']:.0f}% removed in "
+                        "total).")
         resid = "within" if self.gap_after <= s["threshold"] else "above"
         text.append(f"Residual gap {self.gap_after:.3g}, {resid} the no-gap threshold.")
-        if resid == "above" and self.residual_where is not None and len(self.residual_where):
-            text.append("Remaining discrepancies: " + self._where_phrase(self.residual_where, 2) + ".")
+        if self.explained != "fully":
+            text.append(self._remaining())
         return " ".join(text)
+
+    def _remaining(self):
+        """What the effects leave unexplained: the reasons and the residual discrepancies."""
+        parts = list(self.reasons)
+        where = self.residual_where if self.residual_where is not None else self.where
+        if where is not None and len(where):
+            parts.append(self._where_phrase(where, 2))
+        return "What remains: " + "; ".join(parts) + "." if parts else ""
 
     def __str__(self):
         return self.summary()
 
     # ---------------------------------------------------------------- figure
-    def plot(self, *, figsize=(13, 8)):
-        """Indicator panels (real, simulator +- 2 std, simulator + best effect) and shrink bars."""
+    def key_panel(self):
+        """Name of the panel that shows the diagnosis: the best effect's, else the top
+        discrepancy's indicator (``spectrum`` when nothing stands out)."""
+        if self.best_effect in KEY_PANEL:
+            return KEY_PANEL[self.best_effect]
+        if len(self.where):
+            top = self.where.iloc[0]
+            if top["indicator"] in ("spectrum", "histogram", "segment", "forecast_error"):
+                return top["indicator"]
+        return "spectrum"
+
+    def plot(self, *, figsize=(13, 11)):
+        """The figure that shows the diagnosis on top, the indicator panels below.
+
+        Top: the key panel (:meth:`key_panel`): the whole-record spectrum on a
+        log-frequency axis with the lines marked, the histogram with the
+        clipped end marked, the segment statistics against time, or the
+        forecast-error curves with the dips marked.  Below: spectrum,
+        histogram, autocorrelation, forecast error and segment statistics
+        (real, simulator +- 2 spreads, simulator + fitted effect) and the gap
+        each candidate removes.
+        """
         import matplotlib.pyplot as plt
 
-        fig, axes = plt.subplots(2, 3, figsize=figsize)
-        for ax, name in zip(axes.flat, _PANELS):
-            df = self.profiles.get(name)
-            if df is None:
-                ax.set_visible(False)
-                continue
-            self._panel(ax, name, df)
-        ax = axes.flat[-1]
+        fig = plt.figure(figsize=figsize)
+        grid = fig.add_gridspec(3, 3, height_ratios=(1.3, 1, 1))
+        self._draw(fig.add_subplot(grid[0, :]), self.key_panel(), key=True)
+        axes = [fig.add_subplot(grid[1 + k // 3, k % 3]) for k in range(6)]
+        for ax, name in zip(axes, _PANELS):
+            self._draw(ax, name)
+        ax = axes[-1]
         ok = self.effects[self.effects.status == "ok"]
         ax.barh(ok["effect"][::-1], 100 * ok["shrink"][::-1].clip(lower=0), color="#4477aa")
-        ax.set_xlabel("gap removed (%)")
+        ax.set_xlabel("gap removed (%, held-out half)" if self.info.get("cross_validated")
+                      else "gap removed (%)")
         ax.set_title("candidate effects")
-        title = f"sim-to-real gap: {self.gap_before:.3g}"
-        if self.best_effect:
-            title += f" -> {self.gap_after:.3g} with {self.best_effect}"
-        fig.suptitle(title)
+        fig.suptitle(self.headline().split(". ")[0] + ".", fontsize=10)
         fig.tight_layout()
         return fig
 
-    def _panel(self, ax, name, df):
+    # units of the axes
+    def _funit(self):
+        return frequency_unit(self.info.get("time_unit"))
+
+    def _draw(self, ax, name, key=False):
+        if name == "spectrum" and key and self.info.get("spectrum_view") is not None:
+            return self._spectrum_panel(ax)
+        if name == "forecast_error" and key and self.info.get("dip_curves") is not None:
+            return self._dip_panel(ax)
+        df = self.profiles.get(name)
+        if df is None:
+            ax.set_visible(False)
+            return None
         if name == "segment":
-            x = np.arange(len(df))
-        else:
-            x = 0.5 * (df["low"].to_numpy() + df["high"].to_numpy())
-            if name == "histogram":
-                x = np.clip(x, df["low"].iloc[1], df["high"].iloc[-2])
-        ax.plot(x, df["real"], color="k", lw=1.2, label="real")
+            return self._segment_panel(ax, df)
+        return self._profile_panel(ax, name, df, key)
+
+    def _bands(self, ax, x, df, label_fit=True):
+        ax.plot(x, df["real"], color="k", lw=1.2, label="real data")
         m, s = df["sim_mean"].to_numpy(), df["sim_std"].to_numpy()
         ax.plot(x, m, color="#4477aa", lw=1, label="simulator")
-        ax.fill_between(x, m - 2 * s, m + 2 * s, color="#4477aa", alpha=0.25, lw=0)
-        if "fitted_mean" in df:
+        ax.fill_between(x, m - 2 * s, m + 2 * s, color="#4477aa", alpha=0.25, lw=0,
+                        label="simulator +- 2 spreads")
+        if "fitted_mean" in df and label_fit and self.best_effect:
             ax.plot(x, df["fitted_mean"], color="#cc6677", lw=1, ls="--",
-                    label=f"+ {self.best_effect}")
-        ax.set_title(name)
-        units = {"spectrum": "frequency (cycles / time unit)", "histogram": "value (real units)",
-                 "autocorrelation": "lag (time units)", "forecast_error": "tau (time units)",
-                 "segment": "segment statistic (index)"}
-        ax.set_xlabel(units[name])
+                    label=f"simulator + {self.best_effect}")
+
+    def _profile_panel(self, ax, name, df, key):
+        factor, funit = self._funit()
+        tu = self._time_unit()
+        x = 0.5 * (df["low"].to_numpy() + df["high"].to_numpy())
+        if name == "histogram":
+            x = np.clip(x, df["low"].iloc[1], df["high"].iloc[-2])
         if name == "spectrum":
-            ax.set_ylabel("log10 PSD")
+            x = x * factor
+        self._bands(ax, x, df)
+        labels = {
+            "spectrum": (f"frequency ({funit})", "log10 power density (standard units)",
+                         "power spectrum (Welch)"),
+            "histogram": ("value (units of the real data)", "sqrt(probability per bin)",
+                          "distribution of values"),
+            "autocorrelation": (f"lag ({tu})", "autocorrelation", "autocorrelation"),
+            "forecast_error": (f"delay tau ({tu})", "log10 forecast error (m = 2)",
+                               "forecast error against the delay"),
+        }
+        xl, yl, title = labels[name]
+        if name == "spectrum":
+            ax.set_xscale("log")
+        if name == "histogram" and key:
+            for level, word in self._clip_levels():
+                ax.axvline(level, color="#cc6677", lw=1.5)
+                ax.annotate(f"clipped {word} {_fmt(level)}", (level, ax.get_ylim()[1]),
+                            color="#cc6677", fontsize=8, ha="right", va="top", rotation=90)
+        ax.set_xlabel(xl)
+        ax.set_ylabel(yl)
+        ax.set_title(title)
+        ax.legend(fontsize=7)
+
+    def _clip_levels(self):
+        """Clipped ends in units of the real data: from the clipping fit, else the histogram's
+        discrepant end bins."""
+        out = []
+        i = self.info
+        for names, params in self._fitted():
+            if names == "clipping":
+                for key, word in (("high", "above"), ("low", "below")):
+                    if np.isfinite(params.get(key, np.inf)):
+                        out.append((i["real_mean"] + i["real_std"] * params[key], word))
+        return out
+
+    def _fitted(self):
+        if self.best_effect is None:
+            return []
+        out = [(self.effects.iloc[0]["effect"], dict(self.effects.iloc[0]["params"]))]
+        if self.combined:
+            out.append((self.combined["effects"][1], dict(self.combined["params"][1])))
+        return out
+
+    def _spectrum_panel(self, ax):
+        factor, funit = self._funit()
+        f, real, sim = self.info["spectrum_view"]
+        ax.plot(f * factor, real, color="k", lw=1, label="real data")
+        ax.plot(f * factor, sim, color="#4477aa", lw=1, label="simulator (mean of runs)")
+        ax.set_xscale("log")
+        for freq, _, z in self.info.get("lines", []):
+            ax.axvline(freq * factor, color="#cc6677", lw=1.2, ls="--")
+            ax.annotate(f"line at {self._freq(freq)} (z = {z:.0f})", (freq * factor, 1.0),
+                        xycoords=("data", "axes fraction"), color="#cc6677", fontsize=8,
+                        ha="left", va="top")
+        ax.set_xlabel(f"frequency ({funit}, log scale)")
+        ax.set_ylabel("log10 power density (standard units)")
+        ax.set_title("whole-record spectrum (multitaper)")
+        ax.legend(fontsize=8, loc="lower left")
+
+    def _dip_panel(self, ax):
+        taus, real, sim = self.info["dip_curves"]
+        dt = self.info["sample_dt"]
+        tu = self._time_unit()
+        ax.plot(taus * dt, real, color="k", lw=1.2, marker=".", label="real data")
+        ax.plot(taus * dt, sim, color="#4477aa", lw=1, marker=".", label="simulator")
+        ax.set_yscale("log")
+        if self.info.get("dip_real") is not None:
+            ax.axvline(self.info["dip_real"] * dt, color="k", ls="--", lw=1)
+            ax.axvline(self.info["dip_sim"] * dt, color="#4477aa", ls="--", lw=1)
+        for c in self.info.get("second_dips", []):
+            ax.axvline(c * dt, color="#cc6677", lw=1.5)
+            ax.annotate(f"second dip at {_fmt(c * dt)} {tu}", (c * dt, 1.0),
+                        xycoords=("data", "axes fraction"), color="#cc6677", fontsize=8,
+                        va="top")
+        ax.set_xlabel(f"delay tau ({tu})")
+        ax.set_ylabel("forecast error sigma_2 (relative to the std)")
+        ax.set_title("forecast error against the delay (dips marked)")
+        ax.legend(fontsize=8)
+
+    def _segment_panel(self, ax, df):
+        tu = self._time_unit()
+        t = 0.5 * (df["low"].to_numpy() + df["high"].to_numpy())
+        colours = ("k", "#cc6677", "#228833")
+        for colour, (label, part) in zip(colours, df.groupby("label", sort=False)):
+            x = t[part.index]
+            m, s = part["sim_mean"].to_numpy(), part["sim_std"].to_numpy()
+            name = label.replace("segment ", "")
+            ax.plot(x, part["real"], color=colour, lw=1.2, marker="o", ms=3,
+                    label=f"{name} (real)")
+            ax.fill_between(x, m - 2 * s, m + 2 * s, color=colour, alpha=0.15, lw=0)
+        ax.axhline(0.0, color="0.5", lw=0.8)
+        ax.set_xlabel(f"time ({tu})")
+        ax.set_ylabel("change from the first segment (standard units)")
+        ax.set_title("statistics per segment against time (bands: simulator +- 2 spreads)")
         ax.legend(fontsize=7)
 
     def to_html(self, path):
@@ -207,12 +479,13 @@ class GapReport:
                                 for k, v in (p or {}).items()))
         fig = self.plot()
         try:
-            sections = [("Summary", f"<p>{html.escape(self.summary())}</p>"),
+            sections = [("Summary", f"<p><b>{html.escape(self.headline())}</b></p>"),
+                        ("What shows it", fig),
+                        ("Details", f"<p>{html.escape(self._details())}</p>"),
                         ("Where real and simulated data differ", self.where),
-                        ("Candidate effects", effects),
-                        ("Indicators", fig)]
+                        ("Candidate effects", effects)]
             if self.residual_where is not None:
-                sections.insert(3, ("Residual discrepancies", self.residual_where))
+                sections.append(("Residual discrepancies", self.residual_where))
             return write_html(path, "Sim-to-real gap diagnosis", sections)
         finally:
             plt.close(fig)

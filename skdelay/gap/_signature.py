@@ -13,11 +13,32 @@ import numpy as np
 from scipy import signal
 
 
-def zscore(x):
-    """``(x - mean) / std`` (gain and offset are nuisance everywhere in the gap module)."""
+def mean_std(x):
+    """Mean and standard deviation of ``x`` at any scale.
+
+    ``np.std`` squares the values: data of order 1e-200 underflow to a zero
+    standard deviation (and would look constant), data of order 1e200
+    overflow to inf.  Dividing by the largest magnitude (a power of two, so
+    exactly) first keeps every intermediate near 1.
+    """
     x = np.asarray(x, dtype=float)
-    sd = x.std()
-    return (x - x.mean()) / (sd if sd > 0 else 1.0)
+    big = float(np.max(np.abs(x))) if x.size else 0.0
+    if not (big > 0 and np.isfinite(big)):
+        return (float(np.mean(x)) if x.size else 0.0), 0.0
+    unit = 2.0 ** np.frexp(big)[1]
+    y = x / unit
+    return float(y.mean() * unit), float(y.std() * unit)
+
+
+def zscore(x):
+    """``(x - mean) / std`` at any scale (gain and offset are nuisance everywhere here)."""
+    x = np.asarray(x, dtype=float)
+    big = float(np.max(np.abs(x))) if x.size else 0.0
+    if big > 0 and np.isfinite(big):
+        x = x / 2.0 ** np.frexp(big)[1]  # exact; see mean_std
+    c = x - x.mean()
+    sd = c.std()
+    return c / (sd if sd > 0 else 1.0)
 
 
 def welch_psd(x, sample_dt, nperseg=1024):
@@ -114,8 +135,8 @@ def quantization_step(real):
     multiples = gaps / step
     if np.mean(np.abs(multiples - np.round(multiples)) < 0.05) < 0.9:
         return None, 0.0
-    sd = x.std()
-    phase = float(((values[0] - x.mean()) / step) % 1.0)
+    mean, sd = mean_std(x)
+    phase = float(((values[0] - mean) / step) % 1.0)
     return step / sd, phase
 
 
@@ -145,7 +166,7 @@ def spikes(real, sims, *, threshold=1.25, details=False):
     heights (units of ``size``): spikes below ``cut`` are missed, which biases
     ``rate`` low and ``size`` high.
     """
-    x = np.asarray(real, dtype=float)
+    x = zscore(real)  # every output is relative to the std: work in standard units
     med = _running_median(x, 5)
     dev = np.abs(x - med)
     ref = [np.abs(zscore(s) - _running_median(zscore(s), 5)) for s in np.atleast_2d(sims)[:2]]
@@ -179,7 +200,10 @@ def centroid(x, sample_dt, nperseg=1024):
 
 
 def onepole_gain2(f, cutoff, sample_dt):
-    """Power gain of the discrete one-pole low-pass ``y += (1 - a) (x - y)``, ``a = exp(-2 pi fc dt)``."""
+    """Power gain of the discrete one-pole low-pass ``y += (1 - a) (x - y)``.
+
+    ``a = exp(-2 pi fc dt)``.
+    """
     a = np.exp(-2 * np.pi * cutoff * sample_dt)
     return (1 - a) ** 2 / (1 - 2 * a * np.cos(2 * np.pi * f * sample_dt) + a**2)
 

@@ -13,15 +13,14 @@ from typing import ClassVar
 
 import numpy as np
 
-from ._effects import Effect, _fmt, register_effect
-from ._problem import SimulationFailed
+from ._effects import Effect, NotApplicable, SimulationFailed, _fmt, register_effect
 from ._signature import ensemble_psd, welch_psd
 
 
 def _param(simulator, key):
     params = getattr(simulator, "params", None) or {}
     if key not in params:
-        raise ValueError(
+        raise NotApplicable(
             f"the simulator has no parameter {key!r} (its params: {sorted(params)}); this "
             "effect does not apply to it."
         )
@@ -30,7 +29,12 @@ def _param(simulator, key):
 
 def _vertex(points, centre):
     """Vertex of a least-squares parabola through the five points nearest ``centre``
-    (None unless convex with the vertex inside their span)."""
+    (None unless convex with the vertex inside their span).
+
+    This is the minimum of a fitted objective (the gap as a function of a
+    drift parameter, noisy because every evaluation re-runs the simulator),
+    not a forecast-error dip: dips go through :func:`skdelay._dips.locate_dip`.
+    """
     rs = np.array(sorted(points, key=lambda r: abs(r - centre))[:5])
     gs = np.array([points[r] for r in rs])
     ok = np.isfinite(gs)
@@ -65,6 +69,8 @@ class DynamicalNoise(Effect):
     log_params = ("dynamical_noise",)
     units: ClassVar[dict] = {"dynamical_noise": "simulator noise intensity"}
     description = "dynamical noise (inside the feedback loop)"
+    signature: ClassVar[tuple] = ("spectrum", "increments", "autocorrelation", "forecast_error",
+                                  "cross_prediction")
 
     def guess(self, real, sim, sample_dt):
         n = len(real)
@@ -146,6 +152,8 @@ class DelayMismatch(Effect):
     bounds: ClassVar[dict] = {"tau": (1e-9, 1e12)}
     units: ClassVar[dict] = {"tau": "time units"}
     description = "delay mismatch"
+    signature: ClassVar[tuple] = ("forecast_error", "autocorrelation", "spectrum",
+                                  "cross_prediction")
 
     def check(self, params, simulator=None):
         if simulator is not None:
@@ -153,22 +161,18 @@ class DelayMismatch(Effect):
 
     def initial(self, problem):
         """Move the model's delay by the shift between the forecast-error dips of the real
-        data and of a simulated run (wide scan around the model's delay)."""
-        from ._indicators import dip_position
-
+        data and of the clean runs (:func:`skdelay._dips.locate_dip`, step 1 near the dip)."""
         tau0 = _param(problem.simulator, "tau")
-        d0 = tau0 / problem.sample_dt
-        n = min(problem.n_samples, 10_000)
-        dip_real = dip_position(problem.real[:n], delay_samples=d0)
-        dip_sim = dip_position(problem.base[0][:n], delay_samples=d0)
-        shift = (dip_real - dip_sim) * problem.sample_dt
+        if problem.dip is None:
+            return self.guess(problem.real, np.array(problem.base), problem.sample_dt)
+        shift = (problem.dip_real - problem.dip_sim) * problem.sample_dt
         return {"tau": float(max(tau0 + shift, 2 * problem.sample_dt))}
 
     def guess(self, real, sim, sample_dt):
-        from ._indicators import dip_position
+        from ._indicators import series_dip
 
-        # the dip of the real data's forecast error is its delay (in samples)
-        return {"tau": float(dip_position(real) * sample_dt)}
+        # without the model's delay: the dip of the real data's forecast error is its delay
+        return {"tau": float(series_dip(real).centre * sample_dt)}
 
     def search_bounds(self, guess, context):
         dt = context.sample_dt
@@ -178,8 +182,9 @@ class DelayMismatch(Effect):
     def overrides(self, params, simulator):
         return {"tau": float(params["tau"])}
 
-    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0):
-        return f"delay tau = {_fmt(params['tau'])} time units ({_fmt(params['tau'] / sample_dt)} samples)"
+    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0, time_unit=None):
+        samples = _fmt(params["tau"] / sample_dt)
+        return f"delay tau = {_fmt(params['tau'])} time units ({samples} samples)"
 
 
 @register_effect
@@ -205,6 +210,7 @@ class ParameterDrift(Effect):
     bounds: ClassVar[dict] = {"start": (-np.inf, np.inf), "end": (-np.inf, np.inf)}
     units: ClassVar[dict] = {"start": "parameter units", "end": "parameter units"}
     description = "parameter drift / mismatch"
+    signature: ClassVar[tuple] = ()  # a parameter can move any indicator
     #: relative end values tried for every parameter in the coarse scan
     scan = (-0.12, -0.05, -0.02, 0.02, 0.05, 0.12)
     #: further relative changes tried, outward, while the gap keeps falling at the scan's
@@ -222,7 +228,7 @@ class ParameterDrift(Effect):
                if k not in self.exclude and isinstance(v, numbers.Real)
                and not isinstance(v, bool) and np.isfinite(v) and v != 0]
         if not out:
-            raise ValueError(
+            raise NotApplicable(
                 "the simulator exposes no numeric parameter besides tau to drift; "
                 "parameter_drift does not apply."
             )
@@ -254,7 +260,7 @@ class ParameterDrift(Effect):
                     best = (gap, key, rel)
         _, key, rel = best
         if key is None:
-            raise ValueError("every drift tried made the simulator fail.")
+            raise SimulationFailed("every drift tried made the simulator fail.")
         v0 = _param(problem.simulator, key)
         pts = {r: g for (k, r), g in scanned.items() if k == key}
         grid = sorted(self.scan)
@@ -323,12 +329,19 @@ class ParameterDrift(Effect):
         order = np.argsort(scores)[::-1]
         return [keys[i] for i in order]
 
+    def transfer(self, params, n_fit, n_score):
+        """The linear ramp fitted on the first ``n_fit`` samples, continued over the next
+        ``n_score`` ones (a constant mismatch stays constant)."""
+        start, end = float(params["start"]), float(params["end"])
+        slope = (end - start) / n_fit
+        return dict(params, start=end, end=end + slope * n_score)
+
     def overrides(self, params, simulator):
         start, end = float(params["start"]), float(params["end"])
         value = start if start == end else (start, end)
         return {params["parameter"]: value}
 
-    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0):
+    def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0, time_unit=None):
         p, s, e = params["parameter"], params["start"], params["end"]
         if s == e:
             return f"{p} = {_fmt(s)} throughout the record (constant mismatch)"

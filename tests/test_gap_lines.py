@@ -1,0 +1,99 @@
+"""Spectral lines anywhere from a few cycles per record to Nyquist (the paper's own hum)."""
+
+import numpy as np
+import pytest
+
+from skdelay.gap import diagnose_gap
+from skdelay.gap._lines import find_lines
+from skdelay.gap._units import format_frequency, parse_sample_dt
+from skdelay.systems import MackeyGlass
+
+MG = MackeyGlass()
+
+
+def hum(x, freq, amp, dt=1.0, phase=0.4):
+    t = np.arange(x.size) * dt
+    return x + amp * x.std() * np.sin(2 * np.pi * freq * t + phase)
+
+
+@pytest.fixture(scope="module")
+def sims_4e4():
+    return [MG.simulate(40_000, random_state=s) for s in (501, 502, 503, 504)]
+
+
+@pytest.mark.parametrize("cycles, amp", [(3.0, 0.05), (3324.0, 0.01), (18_000.0, 0.01),
+                                         (19_990.5, 0.01)])
+def test_line_found_from_a_few_cycles_to_nyquist(sims_4e4, cycles, amp):
+    n = 40_000
+    real = hum(MG.simulate(n, random_state=511), cycles / n, amp)
+    lines = find_lines(real, sims_4e4, 1.0)
+    assert len(lines) == 1
+    # within one bin (1 / n); the amplitude within 10 %
+    assert abs(lines[0].frequency - cycles / n) < 1.0 / n
+    assert lines[0].amplitude == pytest.approx(amp, rel=0.1)
+
+
+def test_no_line_in_clean_runs(sims_4e4):
+    for seed in (521, 522, 523):
+        assert find_lines(MG.simulate(40_000, random_state=seed), sims_4e4, 1.0) == []
+
+
+def test_mains_hum_at_1_mhz_a_few_tens_of_cycles():
+    """50 Hz at 1 MHz: period 20 000 samples, 20 cycles in 0.4 s, 3 % of the std."""
+    n = 400_000
+    sims = [MG.simulate(n, random_state=s) for s in (531, 532, 533)]
+    real = hum(MG.simulate(n, random_state=534), 50.0, 0.03, dt=1e-6)
+    lines = find_lines(real, sims, 1e-6)
+    assert len(lines) == 1 and abs(lines[0].frequency - 50.0) < 1.0 / (n * 1e-6)
+    assert format_frequency(lines[0].frequency, "s") == "50 Hz"
+
+
+def test_units_parsing():
+    assert parse_sample_dt("1 us") == (1.0, "us")
+    assert parse_sample_dt((2.0, "ms")) == (2.0, "ms")
+    assert parse_sample_dt(0.5, "s") == (0.5, "s")
+    assert format_frequency(5e-5, "us") == "50 Hz"
+    assert format_frequency(0.25, None) == "0.25 cycles per time unit"
+    with pytest.raises(ValueError, match="unknown time unit"):
+        parse_sample_dt("1 parsec")
+    with pytest.raises(ValueError, match="positive"):
+        parse_sample_dt(-1.0)
+
+
+@pytest.fixture(scope="module")
+def mains_report():
+    """A 50 Hz hum at 1 MHz (3 cycles in 60 ms, 5 % of the std) in Mackey-Glass data whose
+    time unit is the microsecond."""
+    n = 60_000
+    real = hum(MG.simulate(n, random_state=541), 50.0, 0.05, dt=1e-6)
+    return diagnose_gap(real, MG, sample_dt="1 us", random_state=0, n_jobs=2,
+                        effects=["periodic_interference", "measurement_noise", "lowpass",
+                                 "parameter_drift", "clipping"])
+
+
+def test_mains_hum_found_reported_in_hz_and_on_top_of_where(mains_report):
+    rep = mains_report
+    assert rep.best_effect == "periodic_interference"
+    p = rep.effects.set_index("effect").loc["periodic_interference", "params"]
+    bin_hz = 1.0 / (60_000 * 1e-6)
+    assert abs(p["frequency"] * 1e6 - 50.0) < bin_hz  # cycles per us -> Hz
+    assert p["amplitude"] == pytest.approx(0.05, rel=0.2)
+    top = rep.where.iloc[0]
+    assert top.indicator == "spectrum" and top.feature == "spectral line"
+    assert top.unit == "Hz" and top.low <= 50.0 <= top.high
+    assert abs(top.peak - 50.0) < bin_hz
+    assert "line at 50" in rep.summary() and "Hz" in rep.summary()
+
+
+def test_noise_does_not_mask_a_hum():
+    """Noise and a hum of a few % each: both found, the hum in the second round."""
+    n = 20_000
+    x = MG.simulate(n, random_state=551)
+    real = hum(x, 0.1123, 0.04) + 0.04 * x.std() * np.random.default_rng(5).standard_normal(n)
+    rep = diagnose_gap(real, MG, random_state=1, n_jobs=2,
+                       effects=["measurement_noise", "periodic_interference", "lowpass",
+                                "outliers", "quantization"])
+    found = {rep.best_effect} | set(rep.combined["effects"] if rep.combined else [])
+    assert found == {"measurement_noise", "periodic_interference"}, rep.effects
+    params = (rep.combined["params"][rep.combined["effects"].index("periodic_interference")])
+    assert abs(params["frequency"] - 0.1123) < 1.0 / n
