@@ -193,7 +193,7 @@ def part_a(args):
     rel_full = np.abs(full.to_numpy() / base - 1)
     rel_def = np.abs(default.loc[sub].to_numpy() / base - 1)
     refined = ~default.attrs["coarse"].loc[sub].to_numpy()
-    from skdelay._dips import locate_dips
+    from skdelay import locate_dips
 
     dips = locate_dips(default)
     print()
@@ -245,7 +245,7 @@ def part_b(args):
     print(f"# (b) load average before: {load()}", flush=True)
     fe, wall, mem, cpu = timed(forecast_error_curve, s, m=ms, tau=taus, n_queries=args.queries,
                                random_state=0, n_jobs=args.n_jobs)
-    from skdelay._dips import locate_dips
+    from skdelay import locate_dips
 
     dips = locate_dips(fe)
     q = fe.attrs["queries"]

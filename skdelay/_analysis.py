@@ -420,6 +420,10 @@ class AnalysisOptions:
         on the reported ``m``; the table is kept in ``AnalysisResult.model_selection``.
     time_unit : str
         Name of the unit of ``sample_dt`` (e.g. ``"us"``), used in every label.
+    refine : bool
+        Add forecasts around each dip of the delay scan until its centre is known
+        to 0.2 samples (see :func:`skdelay.forecast_error_curve`); off in the
+        quick preset.
     """
 
     m: tuple = (2, 3, 4, 5)
@@ -437,13 +441,14 @@ class AnalysisOptions:
     step: int | None = None
     select_model: bool = False
     time_unit: str = "time unit"
+    refine: bool = True
 
     @classmethod
     def quick(cls, **changes):
         """Small settings for previews and tests (about 10x faster): a few per cent
         precision in sigma and the exponents instead of about one."""
         base = cls(n_queries=QUICK_QUERIES, n_run=QUICK_RUN, n_runs=2,
-                   n_spectrum_steps=QUICK_SPECTRUM_STEPS)
+                   n_spectrum_steps=QUICK_SPECTRUM_STEPS, refine=False)
         return replace(base, **changes)
 
     def resolved(self, n):
@@ -577,7 +582,9 @@ def analyze_series(series, options=None, *, quick=False, random_state=0, n_jobs=
         f"({len(ms) * len(taus)} cells, {opts.n_queries} forecasts each)")
     t1 = time.perf_counter()
     curve = forecast_error_curve(s, m=ms, tau=taus, n_queries=opts.n_queries,
-                                 random_state=random_state, n_jobs=n_jobs, verbose=verbose)
+                                 refine=opts.refine, progress=progress is not None and
+                                 verbose > 0, random_state=random_state, n_jobs=n_jobs,
+                                 verbose=verbose)
     dips = locate_dips(curve)
     dips["tau_used"] = dips["tau_best"]
     timings["delay_scan"] = time.perf_counter() - t1

@@ -26,6 +26,8 @@ from typing import ClassVar
 
 import numpy as np
 
+from ._search import generic_search
+
 #: name -> effect class; filled by the effect modules and :func:`register_effect`.
 EFFECTS = {}
 
@@ -203,10 +205,8 @@ class Effect:
         """Fitted parameters: minimise ``objective(params)`` (the gap) starting at ``guess``.
 
         Default: the bounded grid + Brent / Nelder-Mead search of
-        :func:`skdelay.gap._fit.generic_search` within :meth:`search_bounds`.
+        :func:`skdelay.gap._search.generic_search` within :meth:`search_bounds`.
         """
-        from ._fit import generic_search
-
         return generic_search(self, problem, guess, objective)
 
     def transfer(self, params, n_fit, n_score):
@@ -240,7 +240,7 @@ class Effect:
         parts = []
         for key, value in params.items():
             unit = self.units.get(key, "")
-            parts.append(f"{key} = {_fmt(value)}{(' ' + unit) if unit else ''}")
+            parts.append(f"{key} = {fmt_value(value)}{(' ' + unit) if unit else ''}")
         return ", ".join(parts)
 
     def __repr__(self):
@@ -251,7 +251,7 @@ def _mid(lo, hi, log):
     return float(math.sqrt(lo * hi) if log else 0.5 * (lo + hi))
 
 
-def _fmt(value):
+def fmt_value(value):
     if isinstance(value, str):
         return value
     value = float(value)

@@ -321,7 +321,7 @@ def tau_grid(delay_samples, n):
     return np.unique(np.concatenate([dense, sparse]))
 
 
-def _fe_curve(x, taus, *, m=2, n_queries=400, max_len=10_000):
+def fe_curve(x, taus, *, m=2, n_queries=400, max_len=10_000):
     from .._selection import forecast_error_curve
 
     z = zscore(np.asarray(x)[:max_len])
@@ -353,7 +353,7 @@ def fe_scan(series, delay_samples=None, *, max_len=10_000):
     else:
         step = 1
         coarse = np.unique(np.geomspace(1, min(200, max(x.size // 20, 8)), 40).astype(int))
-    curve = _fe_curve(x, coarse)
+    curve = fe_curve(x, coarse)
     k = np.arange(1, coarse.size - 1)
     minima = k[(curve[k] <= curve[k - 1]) & (curve[k] <= curve[k + 1])]
     minima = np.union1d(minima, [int(np.argmin(curve))]).astype(int)
@@ -363,7 +363,7 @@ def fe_scan(series, delay_samples=None, *, max_len=10_000):
         dense.extend(range(max(1, int(lo) - 2), int(hi) + 3))
     extra = np.setdiff1d(np.unique(dense), coarse)
     if extra.size:
-        curve = np.concatenate([curve, _fe_curve(x, extra)])
+        curve = np.concatenate([curve, fe_curve(x, extra)])
         coarse = np.concatenate([coarse, extra])
     order = np.argsort(coarse)
     return coarse[order].astype(float), curve[order]
@@ -437,7 +437,7 @@ class ForecastError(Indicator):
         self.taus = tau_grid(delay_samples, len(real))
 
     def profile(self, z, blocks=False):
-        return np.log10(np.maximum(_fe_curve(z, self.taus), 1e-12)), None
+        return np.log10(np.maximum(fe_curve(z, self.taus), 1e-12)), None
 
     def bounds(self):
         return (self.taus - 0.5) * self.sample_dt, (self.taus + 0.5) * self.sample_dt

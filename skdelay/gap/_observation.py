@@ -14,7 +14,7 @@ import numpy as np
 from scipy import signal
 from scipy.interpolate import CubicSpline
 
-from ._effects import Effect, NotApplicable, _fmt, register_effect
+from ._effects import Effect, NotApplicable, fmt_value, register_effect
 from ._signature import (
     centroid,
     pile_ups,
@@ -123,7 +123,7 @@ class Quantization(Effect):
 
     def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0, time_unit=None):
         step = params["step"] * scale
-        return f"ADC step = {_fmt(step)} (units of real data) = {_fmt(params['step'])} x signal std"
+        return f"ADC step = {fmt_value(step)} (units of real data) = {fmt_value(params['step'])} x signal std"
 
 
 @register_effect
@@ -189,11 +189,11 @@ class PeriodicInterference(Effect):
     def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0, time_unit=None):
         if time_unit is not None:
             return (f"line at {format_frequency(params['frequency'], time_unit)}, amplitude "
-                    f"{_fmt(params['amplitude'] * scale)} (units of real data) = "
-                    f"{_fmt(params['amplitude'])} x signal std")
-        return (f"line at {_fmt(params['frequency'])} cycles per time unit, amplitude "
-                f"{_fmt(params['amplitude'] * scale)} (units of real data) = "
-                f"{_fmt(params['amplitude'])} x signal std")
+                    f"{fmt_value(params['amplitude'] * scale)} (units of real data) = "
+                    f"{fmt_value(params['amplitude'])} x signal std")
+        return (f"line at {fmt_value(params['frequency'])} cycles per time unit, amplitude "
+                f"{fmt_value(params['amplitude'] * scale)} (units of real data) = "
+                f"{fmt_value(params['amplitude'])} x signal std")
 
 
 @register_effect
@@ -292,8 +292,8 @@ class Clipping(Effect):
         sides = []
         for key, word in (("high", "above"), ("low", "below")):
             if np.isfinite(params[key]):
-                sides.append(f"saturates {word} {_fmt(offset + scale * params[key])} "
-                             f"(units of real data; {_fmt(params[key])} signal std from the mean)")
+                sides.append(f"saturates {word} {fmt_value(offset + scale * params[key])} "
+                             f"(units of real data; {fmt_value(params[key])} signal std from the mean)")
         return "; ".join(sides) or "no saturation"
 
 
@@ -372,8 +372,8 @@ class Outliers(Effect):
                 "size": (max(s / 2, 1.0), min(s * 2, 50.0))}
 
     def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0, time_unit=None):
-        return (f"spikes at a rate of {_fmt(params['rate'])} per sample, typical height "
-                f"{_fmt(params['size'] * scale)} (units of real data) = {_fmt(params['size'])} "
+        return (f"spikes at a rate of {fmt_value(params['rate'])} per sample, typical height "
+                f"{fmt_value(params['size'] * scale)} (units of real data) = {fmt_value(params['size'])} "
                 "x signal std")
 
     def apply(self, x, params, *, sample_dt=1.0, random_state=None):

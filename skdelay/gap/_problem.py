@@ -168,10 +168,10 @@ class GapProblem:
             self.sim_dips, self.second_dips, self.dip_curves = [], [], None
             self.dip_real = self.dip_sim = self.dip_spread = None
             return
-        from ._indicators import _fe_curve
+        from ._indicators import fe_curve
 
         taus, real_curve = fe_scan(self.real, self.delay_samples)
-        sim_curves = [_fe_curve(x, taus) for x in self.base[: self.DIP_RUNS]]
+        sim_curves = [fe_curve(x, taus) for x in self.base[: self.DIP_RUNS]]
         # the delay's dip is sought near the model's delay (+-max(6, delay / 4) samples, as
         # wide as a delay mismatch the fit considers): a strong hum makes a deeper dip of its
         # own at a quarter of its period, which is not the delay
@@ -281,7 +281,7 @@ class GapProblem:
         the delays around each dip and the dip counts only if the real curve
         still lies ``SECOND_DIP_DEPTH`` below theirs there.
         """
-        from ._indicators import SECOND_DIP_DEPTH, _fe_curve
+        from ._indicators import SECOND_DIP_DEPTH, fe_curve
 
         if not self.second_dips:
             return []
@@ -295,7 +295,7 @@ class GapProblem:
         out = []
         for dip in self.second_dips:
             k = int(np.argmin(np.abs(taus - dip.tau_min)))
-            ref = np.mean([_fe_curve(x, [taus[k]])[0] for x in runs])
+            ref = np.mean([fe_curve(x, [taus[k]])[0] for x in runs])
             if 1.0 - real_curve[k] / ref >= SECOND_DIP_DEPTH:
                 out.append(dip)
         return out

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ._effects import EFFECTS, _fmt
+from ._effects import EFFECTS, fmt_value
 from ._signature import mean_std
 from ._units import format_frequency, frequency_unit, time_unit_name
 
@@ -142,7 +142,7 @@ class GapReport:
     def _where_phrase(self, df, k=3):
         parts = []
         for _, r in df.head(k).iterrows():
-            parts.append(f"{r['indicator']} {r['feature']} at {_fmt(r['low'])}-{_fmt(r['high'])} "
+            parts.append(f"{r['indicator']} {r['feature']} at {fmt_value(r['low'])}-{fmt_value(r['high'])} "
                          f"{r['unit']} (z = {r['z']:.1f}; {r['note']})")
         return "; ".join(parts)
 
@@ -171,24 +171,24 @@ class GapReport:
             f = r["peak"] / (frequency_unit(self.info.get("time_unit"))[0])
             return f"a spectral line at {self._freq(f)} that the simulator lacks"
         if feature == "dip position":
-            return (f"the position of the forecast-error dip ({_fmt(r['real_value'])} {tu} in the "
-                    f"real data, {_fmt(r['sim_value'])} {tu} simulated)")
+            return (f"the position of the forecast-error dip ({fmt_value(r['real_value'])} {tu} in the "
+                    f"real data, {fmt_value(r['sim_value'])} {tu} simulated)")
         if feature == "second dip":
-            return f"a second forecast-error dip at {_fmt(r['peak'])} {tu} that the simulator lacks"
+            return f"a second forecast-error dip at {fmt_value(r['peak'])} {tu} that the simulator lacks"
         if ind == "spectrum":
-            return (f"the power spectrum between {_fmt(r['low'])} and {_fmt(r['high'])} "
+            return (f"the power spectrum between {fmt_value(r['low'])} and {fmt_value(r['high'])} "
                     f"{r['unit']} (real power {side})")
         if ind == "histogram":
-            return (f"the distribution of values between {_fmt(r['low'])} and {_fmt(r['high'])} "
+            return (f"the distribution of values between {fmt_value(r['low'])} and {fmt_value(r['high'])} "
                     f"(units of the data; real {side})")
         if ind == "segment":
-            return (f"the {feature.replace('segment ', '')} between t = {_fmt(r['low'])} and "
-                    f"{_fmt(r['high'])} {tu} (real {side}: the record is not stationary)")
+            return (f"the {feature.replace('segment ', '')} between t = {fmt_value(r['low'])} and "
+                    f"{fmt_value(r['high'])} {tu} (real {side}: the record is not stationary)")
         if ind == "increments":
             return f"the distribution of one-step increments (real {side})"
         if ind == "levels":
             return f"the number of distinct values (real {side}: another resolution)"
-        return f"the {feature} between {_fmt(r['low'])} and {_fmt(r['high'])} {r['unit']}"
+        return f"the {feature} between {fmt_value(r['low'])} and {fmt_value(r['high'])} {r['unit']}"
 
     def headline(self):
         """Where the data differ, which effect explains it (or how much of it), how far."""
@@ -235,8 +235,8 @@ class GapReport:
         s = self.significance
         i = self.info
         unit = f" {i['time_unit']}" if i.get("time_unit") else ""
-        params = ", ".join(f"{k}={_fmt(v)}" for k, v in i["simulator_params"].items())
-        head = (f"Real data ({i['n_samples']} samples, sample_dt = {_fmt(i['sample_dt'])}{unit}) "
+        params = ", ".join(f"{k}={fmt_value(v)}" for k, v in i["simulator_params"].items())
+        head = (f"Real data ({i['n_samples']} samples, sample_dt = {fmt_value(i['sample_dt'])}{unit}) "
                 "versus "
                 f"{i['simulator']} ({params}; "
                 f"{i['n_sims']} runs): gap {self.gap_before:.3g} against a no-gap level of "
@@ -387,7 +387,7 @@ class GapReport:
         if name == "histogram" and key:
             for level, word in self._clip_levels():
                 ax.axvline(level, color="#cc6677", lw=1.5)
-                ax.annotate(f"clipped {word} {_fmt(level)}", (level, ax.get_ylim()[1]),
+                ax.annotate(f"clipped {word} {fmt_value(level)}", (level, ax.get_ylim()[1]),
                             color="#cc6677", fontsize=8, ha="right", va="top", rotation=90)
         ax.set_xlabel(xl)
         ax.set_ylabel(yl)
@@ -442,7 +442,7 @@ class GapReport:
             ax.axvline(self.info["dip_sim"] * dt, color="#4477aa", ls="--", lw=1)
         for c in self.info.get("second_dips", []):
             ax.axvline(c * dt, color="#cc6677", lw=1.5)
-            ax.annotate(f"second dip at {_fmt(c * dt)} {tu}", (c * dt, 1.0),
+            ax.annotate(f"second dip at {fmt_value(c * dt)} {tu}", (c * dt, 1.0),
                         xycoords=("data", "axes fraction"), color="#cc6677", fontsize=8,
                         va="top")
         ax.set_xlabel(f"delay tau ({tu})")
@@ -475,7 +475,7 @@ class GapReport:
 
         effects = self.effects.copy()
         effects["params"] = effects["params"].map(
-            lambda p: ", ".join(f"{k}={_fmt(v) if not isinstance(v, str) else v}"
+            lambda p: ", ".join(f"{k}={fmt_value(v) if not isinstance(v, str) else v}"
                                 for k, v in (p or {}).items()))
         fig = self.plot()
         try:

@@ -13,7 +13,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from ._effects import Effect, NotApplicable, SimulationFailed, _fmt, register_effect
+from ._effects import Effect, NotApplicable, SimulationFailed, fmt_value, register_effect
 from ._signature import ensemble_psd, welch_psd
 
 
@@ -183,8 +183,8 @@ class DelayMismatch(Effect):
         return {"tau": float(params["tau"])}
 
     def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0, time_unit=None):
-        samples = _fmt(params["tau"] / sample_dt)
-        return f"delay tau = {_fmt(params['tau'])} time units ({samples} samples)"
+        samples = fmt_value(params["tau"] / sample_dt)
+        return f"delay tau = {fmt_value(params['tau'])} time units ({samples} samples)"
 
 
 @register_effect
@@ -344,5 +344,5 @@ class ParameterDrift(Effect):
     def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0, time_unit=None):
         p, s, e = params["parameter"], params["start"], params["end"]
         if s == e:
-            return f"{p} = {_fmt(s)} throughout the record (constant mismatch)"
-        return f"{p} drifts from {_fmt(s)} to {_fmt(e)} over the record"
+            return f"{p} = {fmt_value(s)} throughout the record (constant mismatch)"
+        return f"{p} drifts from {fmt_value(s)} to {fmt_value(e)} over the record"
