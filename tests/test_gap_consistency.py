@@ -66,13 +66,12 @@ def test_second_delay_is_not_fully_explained(second_delay_report):
     assert len(second) >= 1
     assert ((second.peak > 17 + 3) & (second.peak < 40 + 3)).all()
     assert any("second forecast-error dip" in r for r in rep.reasons)
-    # neither time-base nor delay mismatch is consistent with the data's own evidence
+    # both were fitted, and the data's own evidence contradicts at least one of them (the
+    # time base: a second delay moves the dip but not the spectral features by one factor)
     for name in ("timebase_mismatch", "delay_mismatch"):
-        row = rep.effects.set_index("effect").loc[name]
-        assert row.status == "ok"
-        problem_checks = [c for c in rep.checks if c[0] == name]
-        if problem_checks:
-            assert not problem_checks[0][1], problem_checks
+        assert rep.effects.set_index("effect").loc[name].status == "ok"
+    checks = [c for c in rep.checks if c[0] in ("timebase_mismatch", "delay_mismatch")]
+    assert checks and not all(c[1] for c in checks), checks
 
 
 def tanh_detector(x, gain):
