@@ -413,3 +413,22 @@ def resolve_sample_dt(series, sample_dt=None):
         return PARAM_RULES["sample_dt"]("sample_dt", sample_dt)
     from_index = sample_dt_from_index(series) if hasattr(series, "index") else None
     return 1.0 if from_index is None else from_index
+
+
+def check_interval(name, value, *, nonnegative=False):
+    """Rule for a ``(low, high)`` range (radii, times, values): None, or finite with
+    ``low < high`` (and ``0 <= low`` when ``nonnegative``); use with :func:`check_params`.
+    """
+    if value is None:
+        return None
+    try:
+        low, high = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be None or a (low, high) pair of numbers, got "
+                        f"{value!r}.") from None
+    ok = np.isfinite(low) and np.isfinite(high) and low < high and (low >= 0 or not nonnegative)
+    if not ok:
+        rule = "0 <= low < high" if nonnegative else "low < high"
+        raise ValueError(f"{name} must be a finite (low, high) pair with {rule}, got "
+                         f"{value!r}; or None to choose it automatically.")
+    return low, high

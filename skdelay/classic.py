@@ -24,6 +24,7 @@ from scipy.spatial import cKDTree
 
 from ._checks import (
     Options,
+    check_interval,
     check_params,
     check_positive_int,
     check_random_state,
@@ -46,17 +47,7 @@ __all__ = [
 
 def _check_pair(name, value):
     """Rule for a (low, high) range of radii or times: None or finite, 0 <= low < high."""
-    if value is None:
-        return None
-    try:
-        low, high = (float(v) for v in value)
-    except (TypeError, ValueError):
-        raise TypeError(f"{name} must be None or a (low, high) pair of numbers, got "
-                        f"{value!r}.") from None
-    if not (np.isfinite(low) and np.isfinite(high) and 0 <= low < high):
-        raise ValueError(f"{name} must be a finite (low, high) pair with 0 <= low < high, got "
-                         f"{value!r}; or None to choose it automatically.")
-    return low, high
+    return check_interval(name, value, nonnegative=True)
 
 
 def _check_theiler(theiler_window, n_vectors):

@@ -25,6 +25,7 @@ from scipy.signal import welch
 from ._checks import (
     Interval,
     Options,
+    check_interval,
     check_params,
     check_positive_int,
     check_random_state,
@@ -88,21 +89,6 @@ MAX_REGIONS = 50
 _REGIONS = Interval("int", 1, MAX_REGIONS,
                     hint="the number of quantile bins per axis (each of the n_regions^2 cells "
                          "needs points of its own; 2..5 is typical)")
-
-
-def _check_range(name, value):
-    """Rule for a histogram ``range``: None or finite (low, high) with low < high."""
-    if value is None:
-        return None
-    try:
-        low, high = (float(v) for v in value)
-    except (TypeError, ValueError):
-        raise TypeError(f"{name} must be None or a (low, high) pair of numbers, got "
-                        f"{value!r}.") from None
-    if not (np.isfinite(low) and np.isfinite(high) and low < high):
-        raise ValueError(f"{name} must be a finite (low, high) pair with low < high, got "
-                         f"{value!r}.")
-    return low, high
 
 
 # --------------------------------------------------------------------------- cross prediction
@@ -357,7 +343,7 @@ def value_histogram(x, *, bins=50, range=None):
     array([1., 1., 1., 1.])
     """
     s = check_series(x, name="x", allow_constant=range is not None)
-    bins, range = check_params(bins=bins, range=(range, _check_range))
+    bins, range = check_params(bins=bins, range=(range, check_interval))
     density, edges = np.histogram(s, bins=bins, range=range, density=True)
     return edges, density
 
@@ -400,7 +386,7 @@ def histogram_distance(x, y, *, bins=50, range=None, normalise=False, metric="he
     True
     """
     bins, range, metric = check_params(
-        bins=bins, range=(range, _check_range),
+        bins=bins, range=(range, check_interval),
         metric=(metric, Options("hellinger", "total_variation")))
     sx = check_series(x, name="x")
     sy = check_series(y, name="y")
