@@ -215,11 +215,18 @@ def _distance(kind, a, b, *, sample_dt, f_max, chi_m, chi_tau, seed):
 
 
 def _reference_bands(segs, **kw):
-    """Median and upper end of the data-vs-data distribution of each distance."""
-    pairs = [(i, j) for i in range(len(segs)) for j in range(i + 1, len(segs))]
+    """Median and upper end of the data-vs-data distribution of each distance.
+
+    Histograms and spectra (cheap) over every pair of segments; the
+    cross-prediction error, which fits a model per pair, over the pairs of
+    neighbouring segments (7 of the 28 for eight segments).
+    """
+    pairs = {"histogram": [(i, j) for i in range(len(segs)) for j in range(i + 1, len(segs))]}
+    pairs["spectrum"] = pairs["histogram"]
+    pairs["chi"] = [(i, i + 1) for i in range(len(segs) - 1)]
     medians, bands = {}, {}
     for kind in ("histogram", "spectrum", "chi"):
-        ref = [_distance(kind, segs[i], segs[j], **kw) for i, j in pairs]
+        ref = [_distance(kind, segs[i], segs[j], **kw) for i, j in pairs[kind]]
         medians[kind] = float(np.median(ref))
         bands[kind] = float(max(np.quantile(ref, REFERENCE_QUANTILE), TOLERANCE * medians[kind]))
     return medians, bands
