@@ -314,6 +314,19 @@ def _kth_smallest(a, k):
     return a[k]
 
 
+@njit(cache=True, inline="always")
+def _slot(table, j):
+    """Slot of ``j`` in an open-addressing hash set (its own, or the empty one to fill).
+
+    ``table`` has a power-of-two size, ``-1`` marks empty slots; linear probing.
+    """
+    mask = table.size - 1
+    h = (j * 2654435761) & mask
+    while table[h] != -1 and table[h] != j:
+        h = (h + 1) & mask
+    return h
+
+
 @njit(cache=True)
 def scan_cells(s, q_t, lists, rk2, row_of, u_min, starts, m, k, radius2, width, is_db,
                ridge, order, fallback, sq, n_exact):
@@ -368,9 +381,7 @@ def scan_cells(s, q_t, lists, rk2, row_of, u_min, starts, m, k, radius2, width, 
             j = np.int64(lists[r1, c])
             if j < 0 or j >= n_max or not is_db[j]:
                 continue
-            h = (j * 2654435761) & (size - 1)
-            while table[h] != -1 and table[h] != j:
-                h = (h + 1) & (size - 1)
+            h = _slot(table, j)
             if table[h] == j:
                 continue
             table[h] = j
@@ -407,9 +418,7 @@ def scan_cells(s, q_t, lists, rk2, row_of, u_min, starts, m, k, radius2, width, 
                 j += c0
                 if j >= n_max or not is_db[j]:
                     continue
-                h = (j * 2654435761) & (size - 1)
-                while table[h] != -1 and table[h] != j:
-                    h = (h + 1) & (size - 1)
+                h = _slot(table, j)
                 if table[h] == j:
                     continue
                 table[h] = j
