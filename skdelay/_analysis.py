@@ -265,6 +265,8 @@ class AnalysisResult:
             "delay": self.delay * self.step,
             "delay_error": float(self.delays.loc[self.m, "delay_error"]) * self.step,
             "delay_significant": bool(self.delays.loc[self.m, "significant"]),
+            "delay_reason": (None if bool(self.delays.loc[self.m, "significant"])
+                             else str(self.delays.loc[self.m, "reason"])),
             "delay_time": tau_time,
             "m": self.m,
             "N": int(spec.n_positive),
@@ -327,10 +329,7 @@ class AnalysisResult:
         """Write results.json, the CSV tables, the model runs and report.html into ``directory``."""
         d = Path(directory)
         d.mkdir(parents=True, exist_ok=True)
-        reasons = {"delay_significant": None}
-        if not bool(self.delays.loc[self.m, "significant"]):
-            reasons["delay_reason"] = str(self.delays.loc[self.m, "reason"])
-        write_json(d / "results.json", self.to_dict(), reasons=reasons, default=str)
+        write_json(d / "results.json", self.to_dict(), default=str)
         self.forecast_error.to_csv(d / "forecast_error.csv")
         self.delays.to_csv(d / "delays.csv")
         self.validation.to_csv(d / "validation.csv")
