@@ -43,9 +43,10 @@ __all__ = ["DIP_ALPHA", "MIN_RELATIVE_DEPTH", "Dip", "locate_dip", "locate_dips"
 DIP_ALPHA = 0.01
 #: Smallest depth, relative to the baseline, that counts as a dip.  With every point a
 #: query the standard errors shrink to a fraction of a percent, and the few-percent
-#: undulations of sigma_m(tau) that any record shows (the geometry of the second window
-#: changes smoothly with tau) would become "significant"; delay dips are 20-90 % deep
-#: (Mackey-Glass, the laser, Ikeda: ``tests/test_dips.py`` measures both populations).
+#: undulations of sigma_m(tau) that the second window's changing geometry gives any record
+#: would become "significant".  The delay dips of this project's tests are far deeper
+#: (Mackey-Glass and the laser: 20-90 %; flat curves of an oversampled record: < 5 %);
+#: the value is not yet calibrated on a population of records without a delay.
 MIN_RELATIVE_DEPTH = 0.1
 #: Parametric-bootstrap draws for the standard error of the centre.
 N_BOOTSTRAP = 200

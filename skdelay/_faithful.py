@@ -74,8 +74,8 @@ COLLAPSE_STD_FRACTION = 0.25
 #: ... or onto a periodic orbit when its autocorrelation beyond one window revives to
 #: this level while the data's (corrected for their measurement noise) stays below it: a
 #: periodic run repeats itself up to the sampling phase (cos(pi / P) >= 0.998 for periods
-#: P >= 50 samples), whereas slowly mixing chaos such as Mackey-Glass tau = 17 revives to
-#: 0.96-0.98 over the same lags.
+#: P >= 50 samples); slowly mixing chaos revives less (the chaotic Mackey-Glass stretch
+#: of tests/test_faithful.py is not flagged).
 PERIODIC_ACF = 0.995
 #: The Lyapunov spectrum has converged in ``m`` when lambda_1 and D_KY of a model lie
 #: within this relative change of the ``m_max`` model, or lambda_1 within three combined
