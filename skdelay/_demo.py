@@ -16,10 +16,11 @@ import numpy as np
 import pandas as pd
 
 from ._analysis import DEFAULT_M, AnalysisOptions, analyze_series, quiet, records
+from ._crosscheck import takens_cross_check
 from ._io import atomic_directory, write_json
 from ._model import ModelOptions
 from ._report import write_demo_report
-from .datasets import load_laser
+from .datasets import laser_exact_spectrum, load_laser
 
 __all__ = ["DEMO_MODEL", "PAPER_TABLE", "DemoResult", "run_demo"]
 
@@ -43,6 +44,35 @@ class DemoResult:
     timings: dict = field(default_factory=dict)
     exact_note: str = ""
     paper: pd.DataFrame = field(default_factory=PAPER_TABLE.copy)
+    takens: object = None
+    takens_delay: int | None = None
+
+    @property
+    def takens_table(self):
+        """The Takens cross-check beside the model (and exact) values, or None."""
+        if self.takens is None:
+            return None
+        return self.takens.table(self._model_values(self.takens_delay),
+                                 self._exact_values(self.takens_delay), scale=self.scale)
+
+    @property
+    def takens_sentence(self):
+        """The cross-check's verdict, conditioned on its numbers ("" when not run)."""
+        if self.takens is None:
+            return ""
+        return self.takens.sentence(self._model_values(self.takens_delay), scale=self.scale,
+                                    unit=self.unit)
+
+    def _model_values(self, delay):
+        row = self.results[delay].summary_row()
+        return {"lambda_max": row["lambda_max"], "D_KY": row["D_KY"]}
+
+    def _exact_values(self, delay):
+        spec = self.exact.get(delay)
+        if spec is None:
+            return None
+        return {"lambda_max": float(spec.exponents[0]),
+                "D_KY": float(spec.kaplan_yorke_dimension)}
 
     @property
     def comparison(self):
@@ -76,10 +106,18 @@ class DemoResult:
             self.comparison.to_csv(tmp / "paper_comparison.csv")
             self.delay_table.to_csv(tmp / "delays_per_m.csv")
             self.cross_prediction.to_csv(tmp / "cross_prediction.csv")
+            if self.takens is not None:
+                self.takens_table.to_csv(tmp / "takens_cross_check.csv")
             write_json(tmp / "results.json", {
                 "unit": self.unit, "table": records(self.table),
                 "paper": records(self.paper),
                 "cross_prediction": records(self.cross_prediction),
+                "takens_cross_check": None if self.takens is None else {
+                    "delay": self.takens_delay, "lag": self.takens.lag,
+                    "kantz_per_unit": records(self.takens.kantz),
+                    "d2_section_raw": self.takens.d2_raw,
+                    "d2_section_reduced": self.takens.d2_reduced,
+                    "sentence": self.takens_sentence},
                 "timings_s": {k: round(v, 1) for k, v in self.timings.items()},
             }, default=str)
             write_demo_report(self, tmp / "report.html")
@@ -108,6 +146,25 @@ def _exact_columns(spec, tau_time, scale):
             "exact D_KY": bound + _fmt(spec.kaplan_yorke_dimension),
             "exact h_KS": ("" if n_pos < k else ">= ") + _fmt(spec.ks_entropy * scale),
             "exact D_KY/tau": bound + _fmt(spec.kaplan_yorke_dimension / tau_time * scale)}
+
+
+def _exact_note(spectra, n_exact, duration):
+    """Where the exact values come from, per delay (shipped and converged, or computed)."""
+    parts = []
+    for delay, spec in spectra.items():
+        integ = spec.extra.get("integration")
+        if integ is None:
+            parts.append(f"tau0 = {delay}: {n_exact} exponents averaged over {duration:g} "
+                         "time units (computed now; not converged)")
+            continue
+        lead = spec.exponents[:20]
+        worst = np.max(spec.spread[:20] / np.maximum(np.abs(lead), lead[0]))
+        state = "converged" if spec.extra.get("converged") else "NOT converged"
+        parts.append(f"tau0 = {delay}: {len(spec)} exponents, {integ['n_runs']} independent "
+                     f"runs of {integ['duration']:g} time units ({state}: standard errors "
+                     f"at most {worst:.0%} of each leading exponent)")
+    return ("the simulator's own spectrum (tangent dynamics of the delay equation); "
+            + "; ".join(parts))
 
 
 #: the quantities of the paper's table and their column names (exponents per ms)
@@ -173,7 +230,8 @@ DEMO_MODEL = ModelOptions(n_neighbors=100, ridge=3e-2)
 
 
 def run_demo(*, delays=(50, 150, 400), n_samples=None, exact=True, n_exact=20,
-             exact_duration=1000.0, random_state=0, n_jobs=None, verbose=0, progress=None):
+             exact_duration=1000.0, takens=True, random_state=0, n_jobs=None, verbose=0,
+             progress=None):
     """The paper's analysis on the embedded laser-like data at several delays.
 
     For each delay: :func:`skdelay.datasets.load_laser`, a delay scan on a grid
@@ -195,6 +253,12 @@ def run_demo(*, delays=(50, 150, 400), n_samples=None, exact=True, n_exact=20,
         need more exponents are shown as lower bounds).
     n_exact : int, default=20
     exact_duration : float, default=1000.0
+        Used only when no converged spectrum is shipped for the data's parameters
+        (:func:`skdelay.datasets.laser_exact_spectrum`).
+    takens : bool, default=True
+        The paper's Takens cross-check at the smallest delay (correlation
+        dimension of the noise-reduced Poincaré section and Kantz's maximal
+        exponent from a standard delay embedding, :mod:`skdelay._crosscheck`).
     random_state, n_jobs, verbose, progress
         As in :func:`analyze_series`.
 
@@ -231,17 +295,29 @@ def run_demo(*, delays=(50, 150, 400), n_samples=None, exact=True, n_exact=20,
                "D_KY/tau": bound + _fmt(row["D_KY/tau"] * scale),
                "m_d": "none" if row["minimal_m"] is None else row["minimal_m"]}
         if exact:
-            say(f"tau0 = {delay}: exact spectrum of the simulator ({n_exact} exponents)")
-            spec = data.system.lyapunov_spectrum(n_exact, duration=exact_duration,
-                                                 random_state=random_state)
+            spec = laser_exact_spectrum(delay)
+            if spec is None:
+                say(f"tau0 = {delay}: exact spectrum of the simulator ({n_exact} exponents)")
+                spec = data.system.lyapunov_spectrum(n_exact, duration=exact_duration,
+                                                     random_state=random_state)
             exact_spectra[delay] = spec
             out.update(_exact_columns(spec, float(data.delay), scale))
         rows[delay] = out
         timings[f"tau0={delay}"] = time.perf_counter() - t0
     table = pd.DataFrame.from_dict(rows, orient="index")
     table.index.name = "tau0"
-    note = (f"the simulator's own spectrum (tangent dynamics of the delay equation), "
-            f"{n_exact} exponents averaged over {exact_duration:g} time units"
-            if exact else "not computed")
+    check, check_delay = None, None
+    if takens and results:
+        check_delay = min(results)
+        say(f"tau0 = {check_delay}: Takens cross-check (standard delay embedding)")
+        t0 = time.perf_counter()
+        data = load_laser(delay=check_delay, n_samples=n_samples)
+        # the estimated delay in samples of the series (the model may use a coarser step)
+        estimated = results[check_delay].summary_row()["delay"]
+        check = takens_cross_check(data.series, estimated, sample_dt=float(data.sample_dt),
+                                   random_state=random_state)
+        timings["takens"] = time.perf_counter() - t0
+    note = _exact_note(exact_spectra, n_exact, exact_duration) if exact else "not computed"
     return DemoResult(results=results, table=table, exact=exact_spectra, unit=unit,
-                      scale=scale, timings=timings, exact_note=note)
+                      scale=scale, timings=timings, exact_note=note, takens=check,
+                      takens_delay=check_delay)
