@@ -8,9 +8,12 @@ data) and the QR iteration from :mod:`skdelay._tangent`.
 
 from __future__ import annotations
 
+import os
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
+from numba import njit
 
 from ._checks import check_positive_int, check_series
 from ._iterate import (
@@ -18,17 +21,26 @@ from ._iterate import (
     check_finite,
     check_tau,
     off_support_fraction,
+    progress_bar,
+    stage_timer,
     support_guard,
 )
+from ._kdtree import query_knn
 from ._model import resolve_model, self_query_index
+from ._neighbours import fit_neighbourhood
 from ._spectrum import LyapunovSpectrum
 from ._tangent import exponents_from_logs, tangent_qr
 from ._windows import lagged_windows
 
 __all__ = ["covering_spectrum", "lyapunov_spectrum"]
 
-#: Rows of Jacobians computed per batch (bounds the (rows, k, 2m) neighbour gather).
+#: Rows of Jacobians computed per batch on the fallback path (radius neighbourhoods or a
+#: duck-typed map: ``local_maps``; bounds its (rows, k, 2m) neighbour gather).
 CHUNK_ROWS = 1 << 16
+#: Rows per task of the compiled k-NN + local fit loop: about 0.1-0.3 s of work each at
+#: k = 100 in 10 dimensions (laser, tau = 400: 75 us per row on one core, 2026-11-23),
+#: small enough for an even split over threads and a progress bar that moves.
+TASK_ROWS = 4096
 #: Largest fraction of a foreign series' vectors allowed off the model's support before a
 #: warning: a model run stays within it by construction (escapes are cut), so anything
 #: beyond a few per cent is a different signal (shifted, rescaled, another system).
@@ -37,7 +49,8 @@ OFF_SUPPORT_LIMIT = 0.05
 
 def lyapunov_spectrum(model, series, *, n_exponents=None, n_steps=None, sample_dt=1.0,
                       tau=None, n_transient=None, qr_interval=None, n_blocks=10,
-                      exclude_self="auto", flow=False, random_state=0, n_jobs=None):
+                      exclude_self="auto", flow=False, random_state=0, n_jobs=None,
+                      progress=None):
     """Lyapunov spectrum of a fitted two-window model along a trajectory.
 
     The tangent map of the delay map is the shift plus one new row,
@@ -92,8 +105,11 @@ def lyapunov_spectrum(model, series, *, n_exponents=None, n_steps=None, sample_d
     random_state : int, Generator or None, default=0
         Initial tangent vectors.
     n_jobs : int, default=None
-        Threads of the neighbour queries behind the Jacobians (-1: all cores;
-        None: the model's own ``n_jobs``).
+        Threads of the neighbour queries and local fits behind the Jacobians
+        (-1: all cores; None: the model's own ``n_jobs``).
+    progress : bool, default=None
+        Show a tqdm progress bar (with ETA) over the Jacobians; None: only
+        inside :func:`~skdelay._iterate.progress_bars` (``skdelay analyze``).
 
     Returns
     -------
@@ -195,22 +211,18 @@ def lyapunov_spectrum(model, series, *, n_exponents=None, n_steps=None, sample_d
                 "the local maps there are extrapolations and the exponents are not the "
                 "model's. Pass the data the model was fitted on, or a run of the model.",
                 OffSupportWarning, stacklevel=2)
-    jac = np.empty_like(V)
-    # the neighbour queries are most of the cost: threads (k-d tree workers) for them
-    workers = {} if n_jobs is None or not hasattr(mdl.regressor, "database") else {
-        "n_jobs": int(n_jobs)}
-    for lo in range(0, n, CHUNK_ROWS):
-        sl = slice(lo, min(n, lo + CHUNK_ROWS))
-        jac[sl], _ = mdl.regressor.local_maps(
-            V[sl], query_index=None if qidx is None else qidx[sl], **workers)
-    if not np.all(np.isfinite(jac)):
-        raise ValueError("the local maps contain NaN/inf; the model or series is degenerate.")
-    if n_transient is None:
-        n_transient = min(max(2 * dim, 1000), n // 5)
-    if qr_interval is None:
-        qr_interval = max(1, min(dim // 2, 200))
-    logs, ends = tangent_qr(jac, mdl.lags(tau), dim, n_exponents, interval=qr_interval,
-                            random_state=random_state)
+    with stage_timer("spectra"):
+        jac = local_gradients(mdl.regressor, V, qidx, n_jobs=n_jobs, progress=progress,
+                              desc=f"spectrum m={mdl.m}, tau={tau}: Jacobians")
+        if not np.all(np.isfinite(jac)):
+            raise ValueError("the local maps contain NaN/inf; the model or series is "
+                             "degenerate.")
+        if n_transient is None:
+            n_transient = min(max(2 * dim, 1000), n // 5)
+        if qr_interval is None:
+            qr_interval = max(1, min(dim // 2, 200))
+        logs, ends = tangent_qr(jac, mdl.lags(tau), dim, n_exponents, interval=qr_interval,
+                                random_state=random_state)
     lam, spread, n_used = exponents_from_logs(logs, ends, n_transient=n_transient,
                                               n_blocks=n_blocks)
     extra = {"m": mdl.m, "tau": tau, "state_dim": dim, "exclude_self": qidx is not None,
@@ -227,7 +239,7 @@ def lyapunov_spectrum(model, series, *, n_exponents=None, n_steps=None, sample_d
 
 
 def covering_spectrum(model, series, *, n_exponents, n_steps=None, sample_dt=1.0,
-                      max_doublings=1, flow=False, n_jobs=None):
+                      max_doublings=1, flow=False, n_jobs=None, progress=None):
     """Lyapunov spectrum with enough exponents to close the Kaplan-Yorke sum (if affordable).
 
     Starts with ``n_exponents`` and doubles (at most ``max_doublings`` times)
@@ -238,10 +250,109 @@ def covering_spectrum(model, series, *, n_exponents, n_steps=None, sample_dt=1.0
     n_exp = min(dim, int(n_exponents))
     for attempt in range(max_doublings + 1):
         spec = lyapunov_spectrum(model, series, n_exponents=n_exp, sample_dt=sample_dt,
-                                 n_steps=n_steps, flow=flow, n_jobs=n_jobs)
+                                 n_steps=n_steps, flow=flow, n_jobs=n_jobs,
+                                 progress=progress)
         closed = spec.kaplan_yorke_dimension < n_exp - 1e-9 or n_exp >= dim
         if closed or attempt == max_doublings:
             spec.extra["ky_closed"] = bool(closed)
             return spec
         n_exp = min(dim, 2 * n_exp)
     return spec  # pragma: no cover - the loop always returns
+
+
+def thread_count(n_jobs):
+    """Threads for ``n_jobs`` (joblib's convention: None 1, -1 all cores, -2 all but one)."""
+    cpus = os.cpu_count() or 1
+    if n_jobs is None:
+        return 1
+    n_jobs = int(n_jobs)
+    return max(1, cpus + 1 + n_jobs) if n_jobs < 0 else max(1, min(n_jobs, cpus))
+
+
+@njit(nogil=True, cache=True)
+def _gradients(data, targets, tree, V, qidx, lo, hi, k, theiler, ridge, out):
+    """Local gradients ``out[lo:hi]`` at the (rescaled) rows ``V[lo:hi]``.
+
+    The same neighbourhoods as :meth:`LocalLinearDelayMap.local_maps`: the
+    ``k`` nearest database rows, after dropping those within ``theiler`` rows
+    of the query's own row ``qidx[i]`` (when ``qidx`` is not empty), and the
+    same ridge-regularised local linear fit.
+    """
+    n_fit, p = data.shape
+    excl = 0 if qidx.size == 0 else 2 * theiler + 1
+    kq = min(n_fit, k + excl)
+    best_d = np.empty(kq)
+    best_i = np.empty(kq, dtype=np.int64)
+    stack = np.empty(256, dtype=np.int64)
+    nb_x = np.zeros((k, p))
+    nb_y = np.zeros(k)
+    nb_w = np.zeros(k)
+    mu = np.empty(p)
+    g = np.empty((p, p))
+    rhs = np.empty(p)
+    for i in range(lo, hi):
+        query_knn(data, tree, V[i], kq, best_d, best_i, stack)
+        used = 0
+        for j in range(kq):
+            if used == k:
+                break
+            row = best_i[j]
+            if row < 0 or (excl > 0 and abs(row - qidx[i]) <= theiler):
+                continue
+            nb_w[used] = 1.0
+            nb_y[used] = targets[row]
+            for f in range(p):
+                nb_x[used, f] = data[row, f]
+            used += 1
+        for j in range(used, k):
+            nb_w[j] = 0.0
+        fit_neighbourhood(nb_x, nb_y, nb_w, V[i], ridge, 1, 0.0, mu, g, rhs, out[i])
+
+
+def local_gradients(reg, V, query_index=None, *, n_jobs=None, progress=None, desc="Jacobians"):
+    """Gradients ``a_n`` of the local linear maps at the rows of ``V`` (data units).
+
+    What ``reg.local_maps(V, query_index=...)[0]`` returns, computed by one
+    compiled k-NN + local fit loop per task of :data:`TASK_ROWS` rows on the
+    numba k-d tree of the model's support guard (shared with :func:`iterate`),
+    ``thread_count(n_jobs)`` threads at once (the loop releases the GIL).
+    Radius neighbourhoods and duck-typed maps take ``local_maps``.
+    """
+    n = V.shape[0]
+    if n_jobs is None:
+        n_jobs = getattr(reg, "n_jobs", None)
+    if (getattr(reg, "radius", None) is not None or not hasattr(reg, "database")
+            or getattr(reg, "order", 1) != 1):
+        jac = np.empty_like(V, dtype=np.float64)
+        with progress_bar(n, desc, progress) as bar:
+            for lo in range(0, n, CHUNK_ROWS):
+                sl = slice(lo, min(n, lo + CHUNK_ROWS))
+                jac[sl], _ = reg.local_maps(
+                    V[sl], query_index=None if query_index is None else query_index[sl],
+                    n_jobs=n_jobs)
+                bar.update(sl.stop - sl.start)
+        return jac
+    guard = support_guard(reg, distance_factor=5.0, range_margin=0.25)
+    Vs = np.ascontiguousarray(guard.scaler.forward(V))
+    qidx = (np.zeros(0, dtype=np.int64) if query_index is None
+            else np.ascontiguousarray(query_index, dtype=np.int64))
+    k = min(int(reg.n_neighbors), guard.data.shape[0])
+    theiler = int(reg.theiler_window or 0)
+    jac = np.empty((n, V.shape[1]))
+    bounds = [(lo, min(n, lo + TASK_ROWS)) for lo in range(0, n, TASK_ROWS)]
+
+    def task(lohi):
+        _gradients(guard.data, guard.targets, guard.tree, Vs, qidx, lohi[0], lohi[1], k,
+                   theiler, float(reg.ridge), jac)
+        return lohi[1] - lohi[0]
+
+    threads = min(thread_count(n_jobs), len(bounds))
+    with progress_bar(n, desc, progress) as bar:
+        if threads == 1:
+            for b in bounds:
+                bar.update(task(b))
+        else:
+            with ThreadPoolExecutor(max_workers=threads) as pool:
+                for done in pool.map(task, bounds):
+                    bar.update(done)
+    return jac
