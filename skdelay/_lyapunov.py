@@ -9,11 +9,14 @@ data) and the QR iteration from :mod:`skdelay._tangent`.
 from __future__ import annotations
 
 import os
+import time
 import warnings
+import weakref
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 from numba import njit
+from scipy.spatial import cKDTree
 
 from ._checks import check_positive_int, check_series
 from ._iterate import (
@@ -25,7 +28,6 @@ from ._iterate import (
     stage_timer,
     support_guard,
 )
-from ._kdtree import query_knn
 from ._model import resolve_model, self_query_index
 from ._neighbours import fit_neighbourhood
 from ._spectrum import LyapunovSpectrum
@@ -37,10 +39,15 @@ __all__ = ["covering_spectrum", "lyapunov_spectrum"]
 #: Rows of Jacobians computed per batch on the fallback path (radius neighbourhoods or a
 #: duck-typed map: ``local_maps``; bounds its (rows, k, 2m) neighbour gather).
 CHUNK_ROWS = 1 << 16
-#: Rows per task of the compiled k-NN + local fit loop: about 0.1-0.3 s of work each at
-#: k = 100 in 10 dimensions (laser, tau = 400: 75 us per row on one core, 2026-11-23),
+#: Rows per task of the k-NN + compiled local fit: 0.3-0.8 s of work each at k = 100 in
+#: 10 dimensions (laser, tau = 400: 70-200 us per row on one loaded core, 2026-11-23),
 #: small enough for an even split over threads and a progress bar that moves.
 TASK_ROWS = 4096
+#: Leaf size of the rotated k-d tree (see :class:`RotatedIndex`: 48 and unbalanced was the
+#: fastest of 16/48 x balanced/not for k = 105 in 10 dimensions).
+INDEX_LEAF_SIZE = 48
+#: Cached rotated indexes of fitted maps (building one costs a covariance and a tree).
+_INDEXES = weakref.WeakKeyDictionary()
 #: Largest fraction of a foreign series' vectors allowed off the model's support before a
 #: warning: a model run stays within it by construction (escapes are cut), so anything
 #: beyond a few per cent is a different signal (shifted, rescaled, another system).
@@ -117,7 +124,8 @@ def lyapunov_spectrum(model, series, *, n_exponents=None, n_steps=None, sample_d
         ``exponents`` (per time unit, descending), ``spread`` (standard
         error over blocks), ``sample_dt``, ``n_steps``; per-step values are
         ``.per_step``; ``.extra`` holds ``m``, ``tau``, ``state_dim``,
-        ``exclude_self``, ``n_transient``, ``qr_interval``.
+        ``exclude_self``, ``n_transient``, ``qr_interval`` and ``seconds`` (wall
+        time of the two parts: ``jacobians``, ``tangent_qr``).
 
     Raises
     ------
@@ -212,6 +220,7 @@ def lyapunov_spectrum(model, series, *, n_exponents=None, n_steps=None, sample_d
                 "model's. Pass the data the model was fitted on, or a run of the model.",
                 OffSupportWarning, stacklevel=2)
     with stage_timer("spectra"):
+        t0 = time.perf_counter()
         jac = local_gradients(mdl.regressor, V, qidx, n_jobs=n_jobs, progress=progress,
                               desc=f"spectrum m={mdl.m}, tau={tau}: Jacobians")
         if not np.all(np.isfinite(jac)):
@@ -221,12 +230,15 @@ def lyapunov_spectrum(model, series, *, n_exponents=None, n_steps=None, sample_d
             n_transient = min(max(2 * dim, 1000), n // 5)
         if qr_interval is None:
             qr_interval = max(1, min(dim // 2, 200))
+        t1 = time.perf_counter()
         logs, ends = tangent_qr(jac, mdl.lags(tau), dim, n_exponents, interval=qr_interval,
                                 random_state=random_state)
+        t2 = time.perf_counter()
     lam, spread, n_used = exponents_from_logs(logs, ends, n_transient=n_transient,
                                               n_blocks=n_blocks)
     extra = {"m": mdl.m, "tau": tau, "state_dim": dim, "exclude_self": qidx is not None,
-                 "n_transient": int(n_transient), "qr_interval": int(qr_interval)}
+                 "n_transient": int(n_transient), "qr_interval": int(qr_interval),
+                 "seconds": {"jacobians": t1 - t0, "tangent_qr": t2 - t1}}
     if flow:
         extra["zero_exponent"] = None
         if lam.min() < 0 or n_exponents == dim:  # the zero lies within the computed range
@@ -269,35 +281,78 @@ def thread_count(n_jobs):
     return max(1, cpus + 1 + n_jobs) if n_jobs < 0 else max(1, min(n_jobs, cpus))
 
 
+class RotatedIndex:
+    """k-NN index of a database in its principal axes (exact Euclidean neighbours).
+
+    Delay vectors have strongly correlated coordinates (successive samples);
+    in the axes of their covariance the k-d tree's boxes fit the data and
+    prune far better.  A rotation keeps distances (up to rounding: only exact
+    ties may be broken differently).  Measured on the laser at tau = 400
+    (m = 5, 1e5 rows, k = 105, 1e4 queries, 2026-11-23, load ~9 on 2 cores):
+    scipy's default tree 1.9 s, rotated 1.2 s, rotated with ``leafsize=48,
+    balanced_tree=False`` 1.1 s (:data:`INDEX_LEAF_SIZE`).
+    """
+
+    def __init__(self, data):
+        data = np.asarray(data, dtype=np.float64)
+        self.n = data.shape[0]
+        self.mean = data.mean(axis=0)
+        _, vecs = np.linalg.eigh(np.atleast_2d(np.cov(data, rowvar=False)))
+        self.rotation = np.ascontiguousarray(vecs[:, ::-1])
+        self.tree = cKDTree(self.rotate(data), leafsize=INDEX_LEAF_SIZE, balanced_tree=False)
+
+    def rotate(self, X):
+        """Rows of ``X`` in the principal axes (centred)."""
+        return (np.asarray(X, dtype=np.float64) - self.mean) @ self.rotation
+
+    def query(self, X, k):
+        """Positions (n, k) of the ``k`` nearest database rows, nearest first (``n``: none)."""
+        _, pos = self.tree.query(self.rotate(X), k=k)
+        return np.asarray(pos, dtype=np.int64).reshape(len(X), k)
+
+
+def rotated_index(reg):
+    """The (cached) :class:`RotatedIndex` of a fitted map's database."""
+    data, _ = reg.database()
+    key = (id(data), data.shape, data[0].tobytes(), data[-1].tobytes())
+    try:
+        cached = _INDEXES.get(reg)
+    except TypeError:  # not weak-referenceable
+        cached = None
+    if cached is not None and cached[0] == key:
+        return cached[1]
+    index = RotatedIndex(data)
+    try:
+        _INDEXES[reg] = (key, index)
+    except TypeError:
+        pass
+    return index
+
+
 @njit(nogil=True, cache=True)
-def _gradients(data, targets, tree, V, qidx, lo, hi, k, theiler, ridge, out):
-    """Local gradients ``out[lo:hi]`` at the (rescaled) rows ``V[lo:hi]``.
+def _fit_rows(data, targets, V, pos, qidx, lo, k, theiler, ridge, out):
+    """Local gradients ``out[lo + i]`` at ``V[lo + i]`` from the neighbour positions ``pos[i]``.
 
     The same neighbourhoods as :meth:`LocalLinearDelayMap.local_maps`: the
-    ``k`` nearest database rows, after dropping those within ``theiler`` rows
-    of the query's own row ``qidx[i]`` (when ``qidx`` is not empty), and the
-    same ridge-regularised local linear fit.
+    first ``k`` of ``pos[i]`` (nearest first) that exist and lie farther than
+    ``theiler`` rows from the query's own row ``qidx[lo + i]`` (when ``qidx``
+    is not empty); the same ridge-regularised local linear fit.
     """
     n_fit, p = data.shape
-    excl = 0 if qidx.size == 0 else 2 * theiler + 1
-    kq = min(n_fit, k + excl)
-    best_d = np.empty(kq)
-    best_i = np.empty(kq, dtype=np.int64)
-    stack = np.empty(256, dtype=np.int64)
     nb_x = np.zeros((k, p))
     nb_y = np.zeros(k)
     nb_w = np.zeros(k)
     mu = np.empty(p)
     g = np.empty((p, p))
     rhs = np.empty(p)
-    for i in range(lo, hi):
-        query_knn(data, tree, V[i], kq, best_d, best_i, stack)
+    for i in range(pos.shape[0]):
+        row_q = lo + i
         used = 0
-        for j in range(kq):
+        for j in range(pos.shape[1]):
             if used == k:
                 break
-            row = best_i[j]
-            if row < 0 or (excl > 0 and abs(row - qidx[i]) <= theiler):
+            row = pos[i, j]
+            if row >= n_fit or (qidx.size > 0 and abs(row - qidx[row_q]) <= theiler):
                 continue
             nb_w[used] = 1.0
             nb_y[used] = targets[row]
@@ -306,17 +361,18 @@ def _gradients(data, targets, tree, V, qidx, lo, hi, k, theiler, ridge, out):
             used += 1
         for j in range(used, k):
             nb_w[j] = 0.0
-        fit_neighbourhood(nb_x, nb_y, nb_w, V[i], ridge, 1, 0.0, mu, g, rhs, out[i])
+        fit_neighbourhood(nb_x, nb_y, nb_w, V[row_q], ridge, 1, 0.0, mu, g, rhs, out[row_q])
 
 
 def local_gradients(reg, V, query_index=None, *, n_jobs=None, progress=None, desc="Jacobians"):
     """Gradients ``a_n`` of the local linear maps at the rows of ``V`` (data units).
 
-    What ``reg.local_maps(V, query_index=...)[0]`` returns, computed by one
-    compiled k-NN + local fit loop per task of :data:`TASK_ROWS` rows on the
-    numba k-d tree of the model's support guard (shared with :func:`iterate`),
-    ``thread_count(n_jobs)`` threads at once (the loop releases the GIL).
-    Radius neighbourhoods and duck-typed maps take ``local_maps``.
+    What ``reg.local_maps(V, query_index=...)[0]`` returns: per task of
+    :data:`TASK_ROWS` rows one k-NN query on the map's :class:`RotatedIndex`
+    and one compiled loop of Theiler exclusion and local fits reading the
+    database in place (no gathered neighbour arrays), ``thread_count(n_jobs)``
+    tasks at once (both release the GIL).  Radius neighbourhoods and
+    duck-typed maps take ``local_maps``.
     """
     n = V.shape[0]
     if n_jobs is None:
@@ -332,19 +388,22 @@ def local_gradients(reg, V, query_index=None, *, n_jobs=None, progress=None, des
                     n_jobs=n_jobs)
                 bar.update(sl.stop - sl.start)
         return jac
-    guard = support_guard(reg, distance_factor=5.0, range_margin=0.25)
-    Vs = np.ascontiguousarray(guard.scaler.forward(V))
+    data, targets = reg.database()  # rescaled units (targets too: gradients need no rescaling)
+    index = rotated_index(reg)
+    Vs = np.ascontiguousarray(reg.x_scaler_.forward(V))
     qidx = (np.zeros(0, dtype=np.int64) if query_index is None
             else np.ascontiguousarray(query_index, dtype=np.int64))
-    k = min(int(reg.n_neighbors), guard.data.shape[0])
+    k = min(int(reg.n_neighbors), index.n)
     theiler = int(reg.theiler_window or 0)
+    kq = min(index.n, k + (0 if query_index is None else 2 * theiler + 1))
     jac = np.empty((n, V.shape[1]))
     bounds = [(lo, min(n, lo + TASK_ROWS)) for lo in range(0, n, TASK_ROWS)]
 
     def task(lohi):
-        _gradients(guard.data, guard.targets, guard.tree, Vs, qidx, lohi[0], lohi[1], k,
-                   theiler, float(reg.ridge), jac)
-        return lohi[1] - lohi[0]
+        lo, hi = lohi
+        _fit_rows(data, targets, Vs, index.query(Vs[lo:hi], kq), qidx, lo, k, theiler,
+                  float(reg.ridge), jac)
+        return hi - lo
 
     threads = min(thread_count(n_jobs), len(bounds))
     with progress_bar(n, desc, progress) as bar:
