@@ -20,7 +20,7 @@ The model stage does not grow with the record: it works on the last
 ``N_VALIDATION = 2e5`` samples and takes spectra along ``1e5`` steps, so
 ``--n 200000 --tau-max 120`` (a short scan) times it in a few minutes.
 ``--baseline REV`` runs the same command with the package as of git revision
-``REV`` (``git archive`` into a temporary directory, ``PYTHONPATH``) right
+``REV`` (``git archive`` into a temporary directory, run from there) right
 after the current one; its model stage is only timed as a whole.
 """
 
@@ -55,14 +55,19 @@ def _data(n, data_dir):
     return path
 
 
-def run_analyze(path, out, extra, env=None, echo=True):
-    """Run the CLI; return (wall seconds, results dict, longest silence, text before it)."""
-    cmd = _skdelay("analyze", path, "--out", out, "--force", *extra)
-    print("command: " + ("PYTHONPATH=... " if env else "") + shlex.join(cmd[2:]), flush=True)
+def run_analyze(path, out, extra, src=None, echo=True):
+    """Run the CLI; return (wall seconds, results dict, longest silence, text before it).
+
+    ``src``: a directory holding another ``skdelay`` package to run instead (it is
+    the working directory, so ``python -m skdelay`` imports that one).
+    """
+    cmd = _skdelay("analyze", Path(path).resolve(), "--out", Path(out).resolve(), "--force",
+                   *extra)
+    print(f"command (in {src or ROOT}): " + shlex.join(cmd[2:]), flush=True)
     t0 = last = time.perf_counter()
     gap, gap_after, tail = 0.0, "", b""
-    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, stdout=subprocess.PIPE, cwd=ROOT,
-                            env=env)
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, stdout=subprocess.PIPE,
+                            cwd=src or ROOT)
     fd = proc.stderr.fileno()
     while True:
         chunk = os.read(fd, 65536)
@@ -122,10 +127,10 @@ def main(argv=None):
             archive = subprocess.run(["git", "-C", str(ROOT), "archive", args.baseline,
                                       "skdelay"], check=True, capture_output=True).stdout
             subprocess.run(["tar", "-x", "-C", str(src)], input=archive, check=True)
-            env = dict(os.environ, PYTHONPATH=str(src))
-            runs["baseline"] = run_analyze(path, Path(tmp) / "baseline", extra, env=env,
+            runs["baseline"] = run_analyze(path, Path(tmp) / "baseline", extra, src=src,
                                            echo=not args.no_echo)
             print(f"load average after the baseline run {os.getloadavg()[0]:.2f}")
+    print(f"load average at end {os.getloadavg()[0]:.2f}")
     wall, results, gap, after = runs["current"]
     summary = results["summary"]
     print(f"\n{args.n} samples (Mackey-Glass tau = 100, noise 1 %, 12 bit): delay "
@@ -145,7 +150,7 @@ def main(argv=None):
             line += (f" {b:13.1f} {b / sec:6.2f}" if b is not None and sec > 0
                      else f" {'-':>13} {'-':>6}")
         print(line)
-    print(f"longest silence on stderr: {gap:.1f} s, after: {after!r}")
+    print(f"longest silence on stderr: {gap:.1f} s, after: {after[-60:]!r}")
     if "baseline" in runs:
         print(f"baseline: git revision {args.baseline}; longest silence "
               f"{runs['baseline'][2]:.1f} s")
