@@ -297,7 +297,11 @@ class RotatedIndex:
         data = np.asarray(data, dtype=np.float64)
         self.n = data.shape[0]
         self.mean = data.mean(axis=0)
-        _, vecs = np.linalg.eigh(np.atleast_2d(np.cov(data, rowvar=False)))
+        cov = (np.atleast_2d(np.cov(data, rowvar=False)) if self.n > 1
+               else np.zeros((data.shape[1], data.shape[1])))
+        if not np.all(np.isfinite(cov)):  # no usable axes: keep the coordinates
+            cov = np.zeros_like(cov)
+        _, vecs = np.linalg.eigh(cov)
         self.rotation = np.ascontiguousarray(vecs[:, ::-1])
         self.tree = cKDTree(self.rotate(data), leafsize=INDEX_LEAF_SIZE, balanced_tree=False)
 

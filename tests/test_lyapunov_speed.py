@@ -124,3 +124,20 @@ def test_progress_bars_only_when_asked(mg, capsys):
     with progress_bars(enabled=False, timings=timings):
         iterate(model, mg[:100], 500)
     assert capsys.readouterr().err == ""  # quiet, but still timed
+
+
+def test_rotated_index_finds_the_exact_neighbours():
+    from scipy.spatial import cKDTree
+
+    from skdelay._lyapunov import RotatedIndex
+
+    rng = np.random.default_rng(5)
+    base = rng.standard_normal((3000, 2))
+    data = np.column_stack([base, base @ [[1.0, 0.5], [0.2, 1.0]] + 1e-3 * rng.standard_normal(
+        (3000, 2))])  # strongly correlated columns, like delay vectors
+    q = data[:200] + 0.01 * rng.standard_normal((200, 4))
+    _, ref = cKDTree(data).query(q, k=15)
+    np.testing.assert_array_equal(np.sort(RotatedIndex(data).query(q, 15), axis=1),
+                                  np.sort(ref, axis=1))
+    one = RotatedIndex(data[:1])  # degenerate database: no axes, still a search
+    assert one.query(q[:3], 1).tolist() == [[0], [0], [0]]
