@@ -166,6 +166,17 @@ def lyapunov_spectrum(model, series, *, n_exponents=None, n_steps=None, sample_d
     >>> spec.exponents.shape, bool(0.002 < spec.exponents[0] < 0.009)
     ((4,), True)
     """
+    return _spectrum(model, series, n_exponents=n_exponents, n_steps=n_steps,
+                     sample_dt=sample_dt, tau=tau, n_transient=n_transient,
+                     qr_interval=qr_interval, n_blocks=n_blocks, exclude_self=exclude_self,
+                     flow=flow, random_state=random_state, n_jobs=n_jobs, progress=progress)
+
+
+def _spectrum(model, series, *, n_exponents, n_steps, sample_dt, tau, n_transient,
+              qr_interval, n_blocks, exclude_self, flow, random_state, n_jobs, progress,
+              cache=None):
+    """:func:`lyapunov_spectrum`; a dict ``cache`` keeps the Jacobians for the next call
+    with the same model, series and steps (they do not depend on ``n_exponents``)."""
     mdl = resolve_model(model)
     tau = check_tau(tau, mdl)
     dim = mdl.state_dim(tau)
@@ -221,8 +232,13 @@ def lyapunov_spectrum(model, series, *, n_exponents=None, n_steps=None, sample_d
                 OffSupportWarning, stacklevel=2)
     with stage_timer("spectra"):
         t0 = time.perf_counter()
-        jac = local_gradients(mdl.regressor, V, qidx, n_jobs=n_jobs, progress=progress,
-                              desc=f"spectrum m={mdl.m}, tau={tau}: Jacobians")
+        if cache is not None and "jac" in cache:
+            jac = cache["jac"]
+        else:
+            jac = local_gradients(mdl.regressor, V, qidx, n_jobs=n_jobs, progress=progress,
+                                  desc=f"spectrum m={mdl.m}, tau={tau}: Jacobians")
+            if cache is not None:
+                cache["jac"] = jac
         if not np.all(np.isfinite(jac)):
             raise ValueError("the local maps contain NaN/inf; the model or series is "
                              "degenerate.")
@@ -256,14 +272,18 @@ def covering_spectrum(model, series, *, n_exponents, n_steps=None, sample_dt=1.0
 
     Starts with ``n_exponents`` and doubles (at most ``max_doublings`` times)
     while every partial sum is still positive; ``extra["ky_closed"]`` says
-    whether the Kaplan-Yorke dimension is a value or only a lower bound.
+    whether the Kaplan-Yorke dimension is a value or only a lower bound.  The
+    Jacobians are computed once (only the tangent QR is repeated).  Other
+    arguments as in :func:`lyapunov_spectrum`.
     """
     dim = resolve_model(model).state_dim()
     n_exp = min(dim, int(n_exponents))
+    cache = {}  # the Jacobians, computed once for all attempts
     for attempt in range(max_doublings + 1):
-        spec = lyapunov_spectrum(model, series, n_exponents=n_exp, sample_dt=sample_dt,
-                                 n_steps=n_steps, flow=flow, n_jobs=n_jobs,
-                                 progress=progress)
+        spec = _spectrum(model, series, n_exponents=n_exp, n_steps=n_steps,
+                         sample_dt=sample_dt, tau=None, n_transient=None, qr_interval=None,
+                         n_blocks=10, exclude_self="auto", flow=flow, random_state=0,
+                         n_jobs=n_jobs, progress=progress, cache=cache)
         closed = spec.kaplan_yorke_dimension < n_exp - 1e-9 or n_exp >= dim
         if closed or attempt == max_doublings:
             spec.extra["ky_closed"] = bool(closed)

@@ -141,3 +141,18 @@ def test_rotated_index_finds_the_exact_neighbours():
                                   np.sort(ref, axis=1))
     one = RotatedIndex(data[:1])  # degenerate database: no axes, still a search
     assert one.query(q[:3], 1).tolist() == [[0], [0], [0]]
+
+
+def test_covering_spectrum_computes_the_jacobians_once(mg, monkeypatch):
+    import skdelay._lyapunov as lyap
+
+    model = _fit(mg, 3, 30, 25, ridge=1e-2)
+    calls = []
+    original = lyap.local_gradients
+    monkeypatch.setattr(lyap, "local_gradients",
+                        lambda *a, **kw: calls.append(1) or original(*a, **kw))
+    spec = lyap.covering_spectrum(model, mg, n_exponents=1, max_doublings=2)
+    assert len(spec) == 4 and len(calls) == 1  # doubled twice, Jacobians once
+    ref = lyapunov_spectrum(model, mg, n_exponents=4)
+    np.testing.assert_array_equal(spec.exponents, ref.exponents)
+    assert spec.extra["ky_closed"] == (spec.kaplan_yorke_dimension < 4)
