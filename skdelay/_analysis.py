@@ -27,6 +27,7 @@ from ._dips import locate_dips
 from ._embedding import required_lags
 from ._faithful import DEFAULT_RUN, minimal_embedding
 from ._io import atomic_directory, write_json
+from ._iterate import progress_bars
 from ._model import ModelOptions
 from ._model_selection import select_model_options
 from ._report import write_analysis_report
@@ -225,7 +226,8 @@ class AnalysisResult:
     runs : dict of int -> ndarray
         Free runs of each model (for histograms, spectra, space-time plots).
     timings : dict
-        Seconds per stage.
+        Seconds per stage: ``correlations``, ``delay_scan``, ``models`` (= ``free_runs``
+        + ``spectra`` + ``fits_and_validation``), ``total``.
     """
 
     name: str
@@ -521,7 +523,9 @@ def analyze_series(series, options=None, *, quick=False, random_state=0, n_jobs=
     verbose : int, default=0
         joblib verbosity of the delay scan (progress lines).
     progress : callable, default=None
-        Called with a short message at the start of every stage.
+        Called with a short message at the start of every stage.  With
+        ``verbose > 0`` as well, the delay scan, every free run and every
+        Lyapunov spectrum also show a tqdm progress bar with ETA on stderr.
     name : str, default="series"
     **overrides
         Any field of :class:`AnalysisOptions` (``m``, ``tau_min``, ``tau_max``,
@@ -603,13 +607,22 @@ def analyze_series(series, options=None, *, quick=False, random_state=0, n_jobs=
         selection = select_model_options(s_val, ms[-1], tau_of[ms[-1]], base=opts.model,
                                          random_state=random_state, n_jobs=n_jobs)
         opts = replace(opts, model=selection.options)
-    faithful = minimal_embedding(
-        s_val, tau=tau_of, m_min=m_all[0], m_max=m_all[-1], n_steps=opts.n_run,
-        n_runs=opts.n_runs, model=opts.model, n_exponents=n_exp,
-        max_doublings={mm: int(mm == ms[-1]) for mm in m_all},
-        n_spectrum_steps=min(opts.n_spectrum_steps, s_val.size), flow=opts.flow,
-        sample_dt=dt, random_state=random_state, n_jobs=n_jobs, progress=say)
+    # tqdm bars (with ETA) for every free run and spectrum when the scan shows one too;
+    # their wall times are added up in ``stages``
+    stages = {}
+    with progress_bars(enabled=progress is not None and verbose > 0, timings=stages):
+        faithful = minimal_embedding(
+            s_val, tau=tau_of, m_min=m_all[0], m_max=m_all[-1], n_steps=opts.n_run,
+            n_runs=opts.n_runs, model=opts.model, n_exponents=n_exp,
+            max_doublings={mm: int(mm == ms[-1]) for mm in m_all},
+            n_spectrum_steps=min(opts.n_spectrum_steps, s_val.size), flow=opts.flow,
+            sample_dt=dt, random_state=random_state, n_jobs=n_jobs, progress=say)
     timings["models"] = time.perf_counter() - t2
+    timings["free_runs"] = stages.get("free_runs", 0.0)
+    timings["spectra"] = stages.get("spectra", 0.0)
+    # the rest of the model stage: fits, noise level, histogram/spectrum/chi distances
+    timings["fits_and_validation"] = (timings["models"] - timings["free_runs"]
+                                      - timings["spectra"])
     timings["total"] = time.perf_counter() - t0
     return AnalysisResult(
         name=name, sample_dt=dt, series=s, revivals=revivals, forecast_error=curve,

@@ -11,9 +11,12 @@ or outside the data range by a margin.
 
 from __future__ import annotations
 
+import contextvars
 import numbers
+import time
 import warnings
 import weakref
+from contextlib import contextmanager
 
 import numpy as np
 from numba import njit
@@ -24,10 +27,19 @@ from ._model import resolve_model
 from ._neighbours import RADIUS_CAP, Standardiser, fit_neighbourhood
 
 __all__ = ["ModelEscapeError", "ModelEscapeWarning", "OffSupportWarning", "Trajectory",
-           "iterate", "off_support_fraction", "run_model", "support_guard"]
+           "iterate", "off_support_fraction", "progress_bar", "progress_bars", "run_model",
+           "stage_timer", "support_guard"]
 
 #: Cached support guards of fitted maps (a guard costs a tree build and a probe search).
 _GUARDS = weakref.WeakKeyDictionary()
+
+#: Steps of a free run per compiled call: the progress bar moves every ~0.1 s (a step
+#: costs 10-40 us at k = 20-44 in 4-10 dimensions, 2026-11-23) and the call overhead
+#: (~10 us) is lost in it.
+RUN_CHUNK = 4096
+
+#: ``(show_bars, timings)`` of the enclosing :func:`progress_bars` block, if any.
+_PROGRESS = contextvars.ContextVar("skdelay_progress", default=None)
 
 ESCAPE_REASONS = {
     1: "the state left the support of the data (nearest database vector too far)",
@@ -118,6 +130,62 @@ def _run(buf, n_hist, n_steps, lags, data, targets, tree, k, k_query, radius2, r
     return n_steps, 0
 
 
+class _NoBar:
+    def update(self, n=1):
+        pass
+
+    def set_postfix_str(self, s=""):
+        pass
+
+
+@contextmanager
+def progress_bars(enabled=True, timings=None):
+    """Within this block, free runs and spectra show tqdm bars and add up their time.
+
+    Calls of :func:`iterate` and :func:`~skdelay.dynamics.lyapunov_spectrum`
+    whose own ``progress`` is None show a bar when ``enabled``; with a dict
+    ``timings`` each adds its wall time under ``"free_runs"`` or ``"spectra"``.
+    ``skdelay analyze`` wraps its model stage in it (the functions in between
+    need no progress argument).
+    """
+    token = _PROGRESS.set((bool(enabled), timings))
+    try:
+        yield timings
+    finally:
+        _PROGRESS.reset(token)
+
+
+@contextmanager
+def progress_bar(total, desc, progress=None, *, unit="step"):
+    """A tqdm bar (ETA on stderr) when ``progress`` is True, or None inside an enabled
+    :func:`progress_bars` block; otherwise an object whose ``update`` does nothing."""
+    if progress is None:
+        scope = _PROGRESS.get()
+        progress = scope is not None and scope[0]
+    if not progress:
+        yield _NoBar()
+        return
+    from tqdm.auto import tqdm
+
+    bar = tqdm(total=total, desc=desc, unit=unit, leave=False, dynamic_ncols=True)
+    try:
+        yield bar
+    finally:
+        bar.close()
+
+
+@contextmanager
+def stage_timer(stage):
+    """Add the block's wall time to ``timings[stage]`` of the enclosing :func:`progress_bars`."""
+    scope = _PROGRESS.get()
+    t0 = time.perf_counter()
+    try:
+        yield
+    finally:
+        if scope is not None and scope[1] is not None:
+            scope[1][stage] = scope[1].get(stage, 0.0) + time.perf_counter() - t0
+
+
 class SupportGuard:
     """The database of a fitted map plus what "on its support" means.
 
@@ -181,7 +249,8 @@ def _nearest_other(data, tree, probe):
     return out
 
 
-def run_model(guard, history, n_steps, lags, *, k, radius, ridge, order, kicks, on_escape):
+def run_model(guard, history, n_steps, lags, *, k, radius, ridge, order, kicks, on_escape,
+              progress=None):
     """Iterate and handle escapes; returns a :class:`Trajectory` of the new values.
 
     ``k``, ``radius``, ``ridge``, ``order`` as in the fitted
@@ -197,9 +266,17 @@ def run_model(guard, history, n_steps, lags, *, k, radius, ridge, order, kicks, 
     k_query = k if radius is None else min(RADIUS_CAP * k, n_db)
     radius2 = np.inf if radius is None else (float(radius) / guard.scaler.scale) ** 2
     kicks = np.asarray(kicks, dtype=np.float64) / guard.scaler.scale
-    n_done, code = _run(buf, n_hist, n_steps, np.asarray(lags, dtype=np.int64), guard.data,
-                        guard.targets, guard.tree, k, k_query, radius2, float(ridge), int(order),
-                        kicks, guard.lo, guard.hi, guard.max_distance ** 2)
+    lags = np.asarray(lags, dtype=np.int64)
+    n_done, code = 0, 0
+    with progress_bar(n_steps, "free run", progress) as bar:
+        while n_done < n_steps and code == 0:  # in chunks, for the progress bar
+            size = min(RUN_CHUNK, n_steps - n_done)
+            done, code = _run(buf, n_hist + n_done, size, lags, guard.data, guard.targets,
+                              guard.tree, k, k_query, radius2, float(ridge), int(order),
+                              kicks[n_done:n_done + size], guard.lo, guard.hi,
+                              guard.max_distance ** 2)
+            n_done += done
+            bar.update(done)
     out = guard.scaler.inverse(buf[n_hist:n_hist + n_done])
     if code == 0:
         return Trajectory(out)
@@ -258,7 +335,7 @@ def check_tau(tau, model):
 
 
 def iterate(model, history, n_steps, *, tau=None, noise=0.0, random_state=None,
-            on_escape="warn", escape_distance=5.0, range_margin=0.25):
+            on_escape="warn", escape_distance=5.0, range_margin=0.25, progress=None):
     """Free-run a fitted two-window model from an initial history.
 
     Each step builds ``v_n(m, tau)`` from the last values, fits the local
@@ -297,6 +374,9 @@ def iterate(model, history, n_steps, *, tau=None, noise=0.0, random_state=None,
     range_margin : float, default=0.25
         ... or when a value leaves the data range widened by this fraction
         of its width (or is not finite).
+    progress : bool, default=None
+        Show a tqdm progress bar (with ETA); None: only inside
+        :func:`~skdelay._iterate.progress_bars` (``skdelay analyze``).
 
     Returns
     -------
@@ -337,7 +417,9 @@ def iterate(model, history, n_steps, *, tau=None, noise=0.0, random_state=None,
     if noise > 0:
         kicks = noise * check_random_state(random_state).standard_normal(n_steps)
     reg = mdl.regressor
-    guard = support_guard(reg, distance_factor=escape_distance, range_margin=range_margin)
-    return run_model(guard, hist, n_steps, mdl.lags(tau), k=reg.n_neighbors,
-                     radius=getattr(reg, "radius", None), ridge=reg.ridge,
-                     order=getattr(reg, "order", 1), kicks=kicks, on_escape=on_escape)
+    with stage_timer("free_runs"):
+        guard = support_guard(reg, distance_factor=escape_distance, range_margin=range_margin)
+        return run_model(guard, hist, n_steps, mdl.lags(tau), k=reg.n_neighbors,
+                         radius=getattr(reg, "radius", None), ridge=reg.ridge,
+                         order=getattr(reg, "order", 1), kicks=kicks, on_escape=on_escape,
+                         progress=progress)

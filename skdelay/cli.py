@@ -320,9 +320,12 @@ def _version():
 
 # ------------------------------------------------------------------------- commands
 def _progress(args):
+    start = time.perf_counter()
+
     def say(message):
-        if not args.quiet:
-            print(f"[skdelay] {message}", file=sys.stderr, flush=True)
+        if not args.quiet:  # elapsed time: the stages' durations show in the log
+            print(f"[skdelay {time.perf_counter() - start:6.1f} s] {message}", file=sys.stderr,
+                  flush=True)
 
     return say
 
