@@ -4,7 +4,9 @@ For Mackey-Glass with tau = 17, 23, 30 at 10^5 samples, clean and with 1 % and
 5 % Gaussian measurement noise, runs :func:`skdelay.dynamics.minimal_embedding`
 (m = 1..5, delay from the data's own forecast-error dips; with ``--select``
 the neighbourhood size and ridge from time-series cross-validation of the
-m = 5 model, otherwise the defaults) and prints m_d with every model's verdict.  What must hold: m_d within +-1 across
+m = 5 model, otherwise the defaults) and prints m_d with every model's verdict and, per m, every criterion with its band (the
+runs behind each verdict), the estimated noise level and whether the models were fitted
+on noise-reduced data.  What must hold: m_d within +-1 across
 the noise levels of one system, and "faithful at m" implies "faithful at m+1".
 
 Usage::
@@ -15,6 +17,7 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import os
 import time
 
 import pandas as pd
@@ -25,6 +28,8 @@ from skdelay.model_selection import select_model_options
 from skdelay.systems import MackeyGlass, measure
 
 NOISE_LEVELS = (0.0, 0.01, 0.05)
+COLUMNS = ["tau", "faithful", "histogram", "histogram_band", "spectrum", "spectrum_band",
+           "chi", "chi_band", "lyapunov", "lambda_1", "d_ky"]
 
 
 def main(argv=None):
@@ -38,6 +43,7 @@ def main(argv=None):
                         help="model settings by cross-validation (else the defaults)")
     args = parser.parse_args(argv)
     rows, lines = [], []
+    pd.set_option("display.width", 200)
     for tau in args.taus:
         clean = MackeyGlass(tau=float(tau)).simulate(args.n, random_state=args.seed)
         for noise in args.noise:
@@ -56,17 +62,22 @@ def main(argv=None):
                          "verdicts m=1..5": verdicts,
                          "k/param, ridge": "default" if model is None else
                          f"{model.per_parameter:g}, {model.ridge:g}",
-                         "seconds": round(dt, 1)})
+                         "noise est.": round(res.noise_level / x.std(), 4),
+                         "denoised": res.denoised,
+                         "seconds": round(dt, 1), "load": round(os.getloadavg()[0], 2)})
             lines.append(f"tau={tau} noise={noise:g}: m_d={res.m_d} ({res.reason or 'ok'})")
             for m, st in res.table["status"].items():
                 lines.append(f"    m={m}: {st}")
+            lines.append(res.table[COLUMNS].round(4).to_string())
+            print(lines[-len(res.table) - 2], flush=True)
     table = pd.DataFrame(rows)
     text = table.to_string(index=False) + "\n\n" + "\n".join(lines) + "\n"
     print(text)
     if args.out:
         with open(args.out, "w", encoding="utf-8") as fh:
-            fh.write(f"python benchmarks/faithful_noise.py --n {args.n} --taus "
-                     f"{' '.join(map(str, args.taus))}{' --select' if args.select else ''}"
+            fh.write(f"nice -n 10 python benchmarks/faithful_noise.py --n {args.n} --taus "
+                     f"{' '.join(map(str, args.taus))} --seed {args.seed}"
+                     f"{' --select' if args.select else ''}"
                      f"\n\n" + text)
 
 

@@ -195,12 +195,22 @@ def _row_table(result, scale=1.0, unit="1/time unit"):
 AT_DELAY_SAMPLES, AT_DELAY_FRACTION, RESPONSE_FRACTION = 2, 0.03, 0.3
 
 
+def _noise_clause(result):
+    attrs = getattr(getattr(result, "validation", None), "attrs", {}) or {}
+    if not attrs.get("denoised"):
+        return ""
+    level = float(attrs.get("noise_fraction", float("nan")))
+    return (f" (the models were fitted on noise-reduced data: the measurement noise, "
+            f"{level:.1%} of the standard deviation, would bias the local fits)")
+
+
 def faithful_sentence(result):
     """The faithful-model verdict in one sentence, following the table."""
+    clause = _noise_clause(result)
     if result.minimal_m is not None:
         return (f"Minimal faithful window length m_d = {result.minimal_m}: every model from "
-                f"m = {result.minimal_m} on reproduces the data.")
-    return f"No model up to m = {max(result.runs or [result.m])} is faithful: " \
+                f"m = {result.minimal_m} on reproduces the data{clause}.")
+    return f"No model up to m = {max(result.runs or [result.m])} is faithful{clause}: " \
         f"{result.minimal_m_reason or 'see the table'}."
 
 

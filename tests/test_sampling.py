@@ -3,7 +3,7 @@
 import pytest
 
 from skdelay import analyze_series
-from skdelay._sampling import noise_and_increments, sampling_step
+from skdelay._sampling import noise_and_increments, sampling_step, white_noise_level
 from skdelay.systems import MackeyGlass, measure
 
 
@@ -18,6 +18,24 @@ def test_noise_level_from_the_structure_function(mg_oversampled):
     noise, _, inc = noise_and_increments(mg_oversampled, max_step=16)
     assert noise == pytest.approx(0.005, rel=0.1)  # measure() normalises to unit std
     assert inc[0] < 2 * noise < inc[-1]
+
+
+@pytest.mark.parametrize("level", [0.01, 0.05])
+def test_white_noise_level_from_high_order_differences(level):
+    clean = MackeyGlass(tau=17.0).simulate(20_000, random_state=0)
+    noise, resolved = white_noise_level(measure(clean, noise=level, random_state=1))
+    assert resolved and noise == pytest.approx(level, rel=0.05)  # unit std after measure()
+    noise, _ = white_noise_level(measure(clean, random_state=1))
+    assert noise < 1e-3  # clean data: only the smooth signal's 8th differences
+
+
+def test_white_noise_level_of_rough_data_is_only_a_bound():
+    from skdelay.datasets import henon
+
+    # a map is not smooth at its sampling step: the differences never level off
+    x = measure(henon(20_000, random_state=0), noise=0.01, random_state=1)
+    noise, resolved = white_noise_level(x)
+    assert not resolved and noise > 0.1
 
 
 def test_step_one_for_records_that_are_not_oversampled():
