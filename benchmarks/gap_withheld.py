@@ -251,9 +251,17 @@ def _short(params):
                      for k, v in params.items() if k != "phase")
 
 
-def build_cases(systems, n_cases, n_controls, n_combined, seed, n=15000, n_outside=1):
+STRENGTHS = ("weak", "moderate", "strong")
+
+
+def build_cases(systems, n_cases, n_controls, n_combined, seed, n=15000, n_outside=1,
+                strength=None):
     """Cases per system: every library effect, no-effect and ADC-count controls, combined
-    pairs (the first always measurement noise + hum) and causes outside the library."""
+    pairs (the first always measurement noise + hum) and causes outside the library.
+
+    ``strength`` (None, "weak", "moderate" or "strong"): draw every single-effect case
+    in that class; None stratifies case ``i`` of an effect into class ``i % 3`` (so a
+    run with ``--cases 1`` holds weak cases only)."""
     global N_RECORD
     N_RECORD = n
     rng = np.random.default_rng(seed)
@@ -271,7 +279,8 @@ def build_cases(systems, n_cases, n_controls, n_combined, seed, n=15000, n_outsi
         for effect in EFFECT_NAMES:
             for i in range(n_cases):
                 # strengths stratified over the classes, jittered
-                u = float(np.clip((i % 3 + rng.uniform()) / 3, 0, 1))
+                cls_i = i % 3 if strength is None else STRENGTHS.index(strength)
+                u = float(np.clip((cls_i + rng.uniform()) / 3, 0, 1))
                 params = draw_params(system, effect, u, rng)
                 cls = "weak" if u < 1 / 3 else ("moderate" if u < 2 / 3 else "strong")
                 add(label, system, [(effect, params)], effect, cls)
@@ -304,13 +313,41 @@ def runtime(system, label, n, sample_dt, n_jobs):
     real = make_real(system, [("periodic_interference",
                                {"frequency": 0.11, "amplitude": 0.15, "phase": 0.0})],
                      n, 424242, sample_dt)
+    import os
+
+    load = os.getloadavg()[0]
     t0, c0 = time.perf_counter(), time.process_time()
     rep = diagnose_gap(real, system, sample_dt=sample_dt, random_state=3, n_jobs=n_jobs)
     return {"system": label, "n_samples": n, "n_jobs": n_jobs,
             "seconds": time.perf_counter() - t0,
+            # 1-minute load average before and after: on a shared machine it sets the wall time
+            "load_before": load, "load_after": os.getloadavg()[0],
             # CPU of this process only: meaningful with n_jobs=1 (robust to a busy machine)
             "cpu_seconds": time.process_time() - c0 if n_jobs == 1 else np.nan,
             "found": rep.best_effect or "None"}
+
+
+def _header(argv):
+    """Command, date, commit and load average: timings mean little without the machine state."""
+    import datetime
+    import os
+    import subprocess
+    import sys
+
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+                                text=True, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"],
+                               capture_output=True, text=True, check=True).stdout.strip()
+        commit += " (with uncommitted changes)" if dirty else ""
+    except (OSError, subprocess.CalledProcessError):
+        commit = "unknown"
+    args = sys.argv[1:] if argv is None else list(argv)
+    print(f"# command: python benchmarks/gap_withheld.py {' '.join(args)}")
+    print(f"# date: {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC; "
+          f"commit {commit}")
+    print(f"# load average at start (1/5/15 min): "
+          f"{' '.join(f'{v:.2f}' for v in os.getloadavg())} on {os.cpu_count()} cores", flush=True)
 
 
 def main(argv=None):
@@ -324,9 +361,13 @@ def main(argv=None):
     ap.add_argument("--combined", type=int, default=2, help="two-effect cases per system")
     ap.add_argument("--n-jobs", type=int, default=2, help="cases run in parallel")
     ap.add_argument("--seed", type=int, default=9_000_000)
+    ap.add_argument("--strength", choices=STRENGTHS, default=None,
+                    help="draw every single-effect case in this strength class "
+                         "(default: case i of an effect in class i % 3)")
     ap.add_argument("--runtime-only", action="store_true")
     ap.add_argument("--runtime-n", type=int, default=40_000)
     args = ap.parse_args(argv)
+    _header(argv)
     pd.set_option("display.width", 200)
     pd.set_option("display.max_columns", 30)
     pd.set_option("display.max_colwidth", 70)
@@ -343,7 +384,7 @@ def main(argv=None):
         return
 
     cases = build_cases(chosen, args.cases, args.controls, args.combined, args.seed, args.n,
-                        args.outside)
+                        args.outside, args.strength)
     dt = {label: d for label, _, d in chosen}
     t0 = time.perf_counter()
     results = []
@@ -415,6 +456,10 @@ def main(argv=None):
         print(f"combined: first effect one of the two {np.mean(first):.0%}, both found "
               f"{np.mean(both):.0%}")
     print(f"median seconds per diagnosis: {df.seconds.median():.1f}")
+    import os
+
+    print(f"# load average at the end (1/5/15 min): "
+          f"{' '.join(f'{v:.2f}' for v in os.getloadavg())}")
     if df.system.nunique() > 1:
         print("\n-- per system --")
         for label, part in single.groupby("system"):

@@ -213,6 +213,31 @@ def explanation(problem, sig, best, chain, after, lacking=None):
     return ("partly" if reasons else "fully"), reasons
 
 
+def _second_choice(problem, off, table, evaluations):
+    """Row of the second-round table to add on top of the best effect, or None.
+
+    The top row when it removes at least ``MIN_SHRINK`` of the residual.  Otherwise the
+    first row that brings an indicator which was still significantly off
+    (:func:`off_indicators`, against the simulator ensemble's own leave-one-out level)
+    back within that level, sets no other indicator off and removes some of the residual:
+    a localised leftover such as a 1 % hum under 2 % noise is a small share of a residual
+    dominated by the noise fit's scatter (in a Mackey-Glass case of that kind the hum took
+    the line indicator back to its null level but removed < 30 % of the residual), and
+    noise must not mask it.
+    """
+    for i, row in table.iterrows():
+        if row["status"] != "ok" or evaluations[i] is None:
+            continue
+        if i == 0 and row["shrink"] >= MIN_SHRINK:
+            return 0
+        if not off or not row["shrink"] > 0:
+            continue
+        now = off_indicators(problem, evaluations[i])
+        if set(now) < set(off):
+            return int(i)
+    return None
+
+
 def _residual_left(problem, after, threshold, gap_before):
     """Is a second effect worth fitting on top of the best one?"""
     return bool(off_indicators(problem, after)
@@ -222,6 +247,17 @@ def _residual_left(problem, after, threshold, gap_before):
 
 #: records are cross-validated only when each half keeps MIN_SAMPLES samples
 MIN_CV_SAMPLES = 2 * MIN_SAMPLES
+#: only candidates removing at least this much of the gap in-sample are cross-validated (the
+#: others cannot reach MIN_SHRINK: in the reduced benchmark at aacf123 the held-out shrink
+#: exceeded the in-sample one by at most 0.19, a second feedback delay, 0.667 vs 0.481).
+#: Cross-validating every candidate was 43 % of a 4e4-sample diagnosis (cProfile).
+CV_MIN_FIT_SHRINK = MIN_SHRINK - 0.2
+
+
+def _worth_cv(results, gap_before):
+    """Names of the fitted candidates whose in-sample shrink reaches CV_MIN_FIT_SHRINK."""
+    return {r.effect for r in results if r.ok and gap_before > 0
+            and 1.0 - max(r.gap_after, 0.0) / gap_before >= CV_MIN_FIT_SHRINK}
 
 
 def cross_validate(effects, parts, parallel, chain=()):
@@ -241,7 +277,8 @@ def cross_validate(effects, parts, parallel, chain=()):
 
     score_chain = [(e, moved(e, p)) for e, p in chain]
     before = score_part.evaluate(score_chain, "full").gap if chain else score_part.before.gap
-    fits = parallel(delayed(fit_effect)(e, fit_part, list(chain)) for e in effects)
+    # only the parameters of the fitting half are needed: no full evaluation there
+    fits = parallel(delayed(fit_effect)(e, fit_part, list(chain), False) for e in effects)
     out = {}
     for eff, res in zip(effects, fits):
         out[eff.name] = (np.nan, {})
@@ -271,7 +308,7 @@ def _table(results, gap_before, problem, by_name, cv=None):
         fit_shrink = (1.0 - max(fit_after, 0.0) / gap_before
                       if (r.ok and gap_before > 0) else np.nan)
         shrink, after, cv_before, cv_after = fit_shrink, fit_after, np.nan, np.nan
-        if cv is not None and r.ok:
+        if cv is not None and r.ok and r.effect in cv[1]:
             cv_before, scores = cv
             cv_after = scores.get(r.effect, (np.nan, {}))[0]
             shrink = (1.0 - max(cv_after, 0.0) / cv_before if cv_before > 0 else np.nan)
@@ -290,9 +327,11 @@ def _table(results, gap_before, problem, by_name, cv=None):
                      "reason": r.reason, "target": r.target, "description": text,
                      "gap_after_fit": fit_after, "shrink_fit": fit_shrink,
                      "cv_gap_before": cv_before, "cv_gap_after": cv_after,
+                     "cross_validated": bool(np.isfinite(cv_after)),
                      "n_evals": r.n_evals, "seconds": r.seconds, "_evaluation": r.evaluation})
     df = pd.DataFrame(rows)
     # a candidate that failed on the held-out half ranks by its in-sample gap, after the rest
+    # (one not cross-validated, removing too little in-sample to matter, by its in-sample gap)
     df["_failed"] = (df["status"] != "ok").astype(int) + df["gap_after"].isna().astype(int)
     df["_key"] = df["gap_after"].fillna(df["gap_after_fit"])
     df = df.sort_values(["_failed", "_key"], kind="stable").drop(columns=["_failed", "_key"])
@@ -418,7 +457,8 @@ def _diagnose(real, simulator, *, sample_dt, effects, random_state, n_jobs, n_si
     parts = problem.split() if (cross_validated and real.size >= MIN_CV_SAMPLES) else None
     cv = None
     if parts is not None and sig["significant"]:
-        ok = [by_name[r.effect] for r in results if r.ok]
+        worth = _worth_cv(results, gap_before)
+        ok = [by_name[r.effect] for r in results if r.effect in worth]
         cv = cross_validate(ok, parts, parallel) if ok else None
     table, evaluations = _table(results, gap_before, problem, by_name, cv)
     best, chain = None, []
@@ -440,12 +480,18 @@ def _diagnose(real, simulator, *, sample_dt, effects, random_state, n_jobs, n_si
         cv2 = None
         if cv is not None:
             best_on_half = cv[1][best][1]
-            ok = [by_name[r.effect] for r in more if r.ok]
+            worth = _worth_cv(more, after.gap)
+            ok = [by_name[r.effect] for r in more if r.effect in worth]
             cv2 = cross_validate(ok, parts, parallel, [(by_name[best], best_on_half)]) \
                 if (ok and best_on_half) else None
         second, second_evals = _table(more, after.gap, problem, by_name, cv2)
+        pick = _second_choice(problem, off, second, second_evals)
+        if pick:  # the chosen candidate heads the table the report describes
+            order = [pick] + [i for i in range(len(second)) if i != pick]
+            second = second.iloc[order].reset_index(drop=True)
+            second_evals = [second_evals[i] for i in order]
         s = second.iloc[0]
-        if s["status"] == "ok" and s["shrink"] >= MIN_SHRINK:
+        if pick is not None:
             total = (1.0 - (1.0 - top["shrink"]) * (1.0 - s["shrink"]) if cv2 is not None
                      else 1.0 - max(s["gap_after"], 0.0) / gap_before)
             combined = {"effects": [best, s["effect"]], "params": [dict(top["params"]),

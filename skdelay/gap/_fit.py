@@ -74,8 +74,12 @@ class _Objective:
         return gap
 
 
-def fit_effect(effect, problem, base_chain=()):
+def fit_effect(effect, problem, base_chain=(), final=True):
     """Fit ``effect`` on top of ``base_chain``; return a :class:`FitResult`.
+
+    ``final=False`` skips the evaluation of the fitted effect on every
+    indicator (``gap_after`` NaN): cross-validation only needs the parameters
+    of the half it fits on, and scores them on the other half.
 
     A candidate that cannot act (:class:`NotApplicable`), whose simulator or
     user-defined effect fails (:class:`CandidateFailed`) comes back with
@@ -85,10 +89,10 @@ def fit_effect(effect, problem, base_chain=()):
     # joblib's workers inherit no thread limit here; BLAS threads spinning against each
     # other made a 4e4-sample diagnosis 3 times slower with n_jobs=2 than with 1
     with threadpool_limits(limits=1, user_api="blas"):
-        return _fit(effect, problem, base_chain)
+        return _fit(effect, problem, base_chain, final)
 
 
-def _fit(effect, problem, base_chain):
+def _fit(effect, problem, base_chain, final=True):
     t0 = time.perf_counter()
     objective = _Objective(effect, problem, base_chain)
     guess = None
@@ -102,6 +106,10 @@ def _fit(effect, problem, base_chain):
         if not np.isfinite(objective.best[0]) and objective.n_evals:
             raise CandidateFailed(f"the simulator failed for every parameter value tried "
                                   f"(last: {objective.last_error})")
+        if not final:
+            return FitResult(effect=effect.name, target=effect.target, params=_clean(params),
+                             gap_fast=objective.best[0], n_evals=objective.n_evals,
+                             seconds=time.perf_counter() - t0)
         final = problem.evaluate(list(base_chain) + [(effect, params)], "full")
         if not np.isfinite(final.gap):
             raise CandidateFailed(f"the fitted effect gives a non-finite gap ({final.gaps}).")

@@ -44,6 +44,20 @@ LINE_ALPHA = 0.01
 #: F(2, 8) at 1e-3 is 18.5: a broadband bump that the z test lets through (a chaotic peak
 #: that one run lacks) has F near 1, a line 5 % of the std in 4e4 samples has F > 100.
 F_ALPHA = 1e-3
+#: The two tests are also combined (Fisher): under the null the excess power (a sum of
+#: taper powers) and the F ratio (how that power splits between the line's direction and
+#: the rest) are independent (ratio and sum of independent chi-squares), so
+#: ``p_z * p_F`` has ``P(U1 U2 < c) = c (1 - ln c)``.  A bin passes when that product is
+#: family-wise significant at LINE_ALPHA -- provided both tests point the same way on their
+#: own (gates below): a 1 % hum in 15000 Mackey-Glass samples with 2.3 % noise reached
+#: z = 3.4 (< 4.7, the z test's Bonferroni bound) and p_F = 6e-5 (> 1e-3 would pass, but
+#: 15000 bins make it unremarkable alone), together p = 2e-8 against a bound of 4e-8.
+#: The gates: the power must stand out of the ensemble at least this much (a coherent F in a
+#: bin whose power the runs share is the continuum's own) ...
+Z_GATE = 2.0
+#: ... and the F-test alone must reach this p-value (a broadband bump that one run lacks
+#: has F near 1, p ~ 0.4, however large its z).
+F_GATE = 0.01
 #: half-width (bins) of the neighbourhood that pools the ensemble's per-bin variance.
 POOL = 16
 #: zero-padding factor of the scan: the F-test assumes the line at the bin's frequency; a
@@ -158,6 +172,13 @@ def _zmap(real_excess, excesses):
             / np.sqrt(_pooled_var(excesses) * (1.0 + 1.0 / k)))
 
 
+def joint_p(z, p_f):
+    """Fisher's combination of the power excess (z, one-sided) and the F-test's p-value:
+    ``P(U1 U2 <= p_z p_F) = c (1 - ln c)`` for independent uniform p-values."""
+    c = np.maximum(stats.norm.sf(np.asarray(z, dtype=float)) * np.asarray(p_f), 1e-300)
+    return c * (1.0 - np.log(c))
+
+
 def find_lines(real, sims, sample_dt, *, max_lines=5):
     """Spectral lines of ``real`` that the simulated runs ``sims`` lack (strongest first).
 
@@ -191,7 +212,7 @@ def find_lines(real, sims, sample_dt, *, max_lines=5):
     z_real = _zmap(real_log, logs)
     # calibration: how far does one simulator run stick out of the others, at bins that
     # also pass the F-test?  (a chaotic run's sharp peaks are the simulator's variability)
-    null = 0.0
+    null, null_joint = 0.0, np.inf
     for j in range(len(runs)):
         others = np.delete(logs, j, axis=0)
         zj = _zmap(logs[j], others)[scan]
@@ -199,10 +220,17 @@ def find_lines(real, sims, sample_dt, *, max_lines=5):
         hit = pj[scan] < F_ALPHA
         if np.any(hit):
             null = max(null, float(np.max(zj[hit])))
+        gate = (zj > Z_GATE) & (pj[scan] < F_GATE)
+        if np.any(gate):
+            null_joint = min(null_joint, float(np.min(joint_p(zj[gate], pj[scan][gate]))))
     # the padded grid is oversampled PAD-fold: scan.size / PAD independent bins
-    bonferroni = float(stats.norm.isf(LINE_ALPHA * PAD / scan.size))
-    threshold = max(bonferroni, null)
-    cand = scan[(z_real[scan] > threshold) & (p_f[scan] < F_ALPHA)]
+    family = LINE_ALPHA * PAD / scan.size
+    threshold = max(float(stats.norm.isf(family)), null)
+    joint = joint_p(z_real[scan], p_f[scan])
+    both = (z_real[scan] > threshold) & (p_f[scan] < F_ALPHA)
+    combined = ((z_real[scan] > Z_GATE) & (p_f[scan] < F_GATE)
+                & (joint < min(family, null_joint)))
+    cand = scan[both | combined]
     if cand.size == 0:
         return []
     # one line per cluster of flagged bins (a line spreads over +-NW bins)
@@ -252,6 +280,11 @@ def _refine(z, k, sample_dt, pad=16):
         if den < 0:
             best += 0.5 * (a - c) / den / pad
     return float(best / (n * sample_dt))
+
+
+def line_amplitude(x, freq, sample_dt):
+    """Amplitude (standard units of ``x``) and phase of a sinusoid at ``freq`` in ``x``."""
+    return _amplitude(zscore(np.asarray(x, dtype=float)), freq, sample_dt)
 
 
 def _amplitude(z, freq, sample_dt):

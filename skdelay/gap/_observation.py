@@ -171,8 +171,14 @@ class PeriodicInterference(Effect):
         """The strongest line of the whole-record multitaper search (any frequency from a few
         cycles per record to Nyquist), else the Welch-based :meth:`guess`."""
         if problem.lines:
+            from ._lines import line_amplitude
+
             line = problem.lines[0]
-            return self._params(line.frequency, line.amplitude, line.phase)
+            # the frequency is read off the whole record (the halves of a cross-validation
+            # share it: a hum of 3 cycles per record has 1.5 per half); amplitude and phase
+            # come from this record's own samples, so a half's fit never sees the other half
+            amp, phase = line_amplitude(problem.real, line.frequency, problem.sample_dt)
+            return self._params(line.frequency, amp, phase)
         return super().initial(problem)
 
     def search_bounds(self, guess, context):

@@ -329,8 +329,10 @@ class GapReport:
         ax = axes[-1]
         ok = self.effects[self.effects.status == "ok"]
         ax.barh(ok["effect"][::-1], 100 * ok["shrink"][::-1].clip(lower=0), color="#4477aa")
-        ax.set_xlabel("gap removed (%, held-out half)" if self.info.get("cross_validated")
-                      else "gap removed (%)")
+        # candidates removing little in-sample are not cross-validated (their shrink is
+        # the in-sample one)
+        ax.set_xlabel("gap removed (%; held-out half where cross-validated)"
+                      if self.info.get("cross_validated") else "gap removed (%)")
         ax.set_title("candidate effects")
         fig.suptitle(self.headline().split(". ")[0] + ".", fontsize=10)
         fig.tight_layout()
@@ -372,8 +374,10 @@ class GapReport:
         if name == "spectrum":
             x = x * factor
         self._bands(ax, x, df)
+        per = "time unit" if self.info.get("time_unit") is None else tu
         labels = {
-            "spectrum": (f"frequency ({funit})", "log10 power density (standard units)",
+            "spectrum": (f"frequency ({funit})",
+                         f"log10 power density (signal std squared per cycle per {per})",
                          "power spectrum (Welch)"),
             "histogram": ("value (units of the real data)", "sqrt(probability per bin)",
                           "distribution of values"),
@@ -417,8 +421,10 @@ class GapReport:
     def _spectrum_panel(self, ax):
         factor, funit = self._funit()
         f, real, sim = self.info["spectrum_view"]
-        ax.plot(f * factor, real, color="k", lw=1, label="real data")
-        ax.plot(f * factor, sim, color="#4477aa", lw=1, label="simulator (mean of runs)")
+        # densities per cycle per time unit -> per Hz when the time unit is known
+        shift = np.log10(factor)
+        ax.plot(f * factor, real - shift, color="k", lw=1, label="real data")
+        ax.plot(f * factor, sim - shift, color="#4477aa", lw=1, label="simulator (mean of runs)")
         ax.set_xscale("log")
         for freq, _, z in self.info.get("lines", []):
             ax.axvline(freq * factor, color="#cc6677", lw=1.2, ls="--")
@@ -426,7 +432,7 @@ class GapReport:
                         xycoords=("data", "axes fraction"), color="#cc6677", fontsize=8,
                         ha="left", va="top")
         ax.set_xlabel(f"frequency ({funit}, log scale)")
-        ax.set_ylabel("log10 power density (standard units)")
+        ax.set_ylabel(f"log10 power density (signal std squared per {funit.replace('cycles ', 'cycle ')})")
         ax.set_title("whole-record spectrum (multitaper)")
         ax.legend(fontsize=8, loc="lower left")
 
@@ -467,6 +473,15 @@ class GapReport:
         ax.set_title("statistics per segment against time (bands: simulator +- 2 spreads)")
         ax.legend(fontsize=7)
 
+    @staticmethod
+    def figure_caption(fig):
+        """The top panel's title and axes in words (read off the figure itself), so that a
+        reader of the page -- or a screen reader -- knows what the one figure shows."""
+        ax = fig.axes[0]
+        return (f"Top panel: {ax.get_title()}; horizontal axis: {ax.get_xlabel()}; vertical "
+                f"axis: {ax.get_ylabel()}. Below: each indicator, real data against the "
+                "simulator's runs (band: +- 2 spreads).")
+
     def to_html(self, path):
         """Write a self-contained HTML report (atomic) and return its path."""
         import matplotlib.pyplot as plt
@@ -480,7 +495,7 @@ class GapReport:
         fig = self.plot()
         try:
             sections = [("Summary", f"<p><b>{html.escape(self.headline())}</b></p>"),
-                        ("What shows it", fig),
+                        ("What shows it", [fig, f"<p>{html.escape(self.figure_caption(fig))}</p>"]),
                         ("Details", f"<p>{html.escape(self._details())}</p>"),
                         ("Where real and simulated data differ", self.where),
                         ("Candidate effects", effects)]
