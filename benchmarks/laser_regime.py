@@ -55,10 +55,11 @@ from pathlib import Path
 
 import numpy as np
 from joblib import Parallel, delayed
-from scipy.signal import welch
+from scipy.signal import argrelmax, welch
 
 from skdelay.dynamics import kaplan_yorke_dimension
 from skdelay.systems import CO2LaserFeedback
+from skdelay.validation import autocorrelation, mutual_information
 
 OUT = Path(__file__).resolve().parent / "out"
 CACHE = OUT / "laser_regime.json"
@@ -92,6 +93,9 @@ GRID_LOW_BETA = (((0.3, 0.35), (140.0, 160.0, 180.0, 200.0), (0.095, 0.1, 0.105,
 GRID_ALPHA = (20.0, 32.8767, 50.0)  # only around the best (r, b0) of the default alpha
 N_CHECK150 = 16  # best tau = 50 points checked at tau = 150
 N_CHECK400 = 4   # best tau = 150 points checked at tau = 400
+OLD_STAGES = ("scan50", "check150", "check400", "final")
+# the set the earlier stages chose (the first "buenner2000" preset)
+OLD_BUENNER = {"r": 120.0, "b0": 0.1, "beta": 0.4286, "alpha": 32.8767, "sp": 2e-5}
 
 
 def n_positive_flow(lam, spread):
@@ -109,14 +113,22 @@ def dominant_period(system, seed=SEED):
     return float(1.0 / f[band][np.argmax(psd[band])])
 
 
-def evaluate(params, tau, n_exponents, duration, seed=SEED):
-    """Spectrum summary (per ms) and dominant period of one parameter set at one delay."""
+def evaluate(params, tau, n_exponents, duration, seed=SEED, qr=None):
+    """Spectrum summary (per ms) and dominant period of one parameter set at one delay.
+
+    ``qr``: time between re-orthonormalisations (default: the class's 2 us);
+    the revival stages use 20 us, which gives the same exponents (to 1e-3 per
+    ms at tau = 50) 2-5 times faster.
+    """
     system = CO2LaserFeedback(tau=tau, **params)
     t0 = time.perf_counter()
     row = {"tau": tau, **params, "k": n_exponents, "duration": duration, "seed": seed}
+    if qr is not None:
+        row["qr"] = qr
     try:
         period = dominant_period(system, seed)
-        spec = system.lyapunov_spectrum(n_exponents, duration=duration, random_state=seed)
+        spec = system.lyapunov_spectrum(n_exponents, duration=duration, random_state=seed,
+                                        qr_interval=qr)
     except ValueError as exc:  # a diverging parameter set is a result of the scan too
         return {**row, "error": str(exc)[:120]}
     lam, spread = spec.exponents, spec.spread
@@ -156,9 +168,10 @@ def within_targets(row):
     return ok and all(abs(row[k] / target[k] - 1.0) <= tol for k, tol in REL_TOL.items())
 
 
-def key_of(params, tau, n_exponents, duration, seed=SEED):
+def key_of(params, tau, n_exponents, duration, seed=SEED, qr=None):
+    extra = {} if qr is None else {"qr": qr}
     return json.dumps({"tau": tau, **params, "k": n_exponents, "duration": duration,
-                       "seed": seed}, sort_keys=True)
+                       "seed": seed, **extra}, sort_keys=True)
 
 
 def run_points(cache, stage, jobs):
@@ -203,7 +216,8 @@ def stage_check(cache, rows, tau, n_best, stage):
     misfit summed over all delays computed so far (cached rows of any stage)."""
     def total(row):
         p = params_of(row)
-        return sum(misfit(c) for c in cache.values() if c["tau"] < tau and params_of(c) == p)
+        return sum(misfit(c) for c in cache.values()
+                   if c.get("stage") in OLD_STAGES and c["tau"] < tau and params_of(c) == p)
 
     best = sorted((r for r in rows if np.isfinite(total(r))), key=total)[:n_best]
     k, duration = SCAN_SPECTRUM[tau]
@@ -211,7 +225,7 @@ def stage_check(cache, rows, tau, n_best, stage):
 
 
 def stage_final(cache):
-    params = CO2LaserFeedback.PRESETS["buenner2000"]
+    params = OLD_BUENNER
     # the longest delay first: it takes most of the time, the others fill the second process
     jobs = [(params, tau, *FINAL_SPECTRUM[tau]) for tau in reversed(DELAYS)]
     jobs += [(params, 50.0, *FINAL_SPECTRUM[50.0], seed) for seed in FINAL_SEEDS_50[1:]]
@@ -222,7 +236,7 @@ def all_delays(cache):
     """Parameter sets computed at every delay (scan durations), by their summed misfit."""
     by_params = {}
     for row in cache.values():
-        if row["stage"] != "final":
+        if row.get("stage") in OLD_STAGES[:3]:
             by_params.setdefault(json.dumps(params_of(row), sort_keys=True), {})[row["tau"]] = row
     complete = [rows for rows in by_params.values() if set(rows) == set(DELAYS)]
     complete.sort(key=lambda rows: sum(misfit(r) for r in rows.values()))
@@ -260,9 +274,9 @@ def report(sections):
         ("k exponents averaged over T microseconds (dt = 0.02, QR every 2 us); "
          "+- is the block standard error of lambda_max; period: dominant one (us)"),
     ]
-    for title, rows in sections:
-        lines += ["", title, HEADER]
-        if isinstance(rows[0], str):
+    for title, rows, *header in sections:
+        lines += ["", title, *(header or [HEADER])]
+        if not rows or isinstance(rows[0], str):
             lines += rows
         else:
             lines += [fmt_row(r) for r in sorted(rows, key=lambda r: (r["tau"], misfit(r)))]
@@ -272,18 +286,265 @@ def report(sections):
     (OUT / "laser_regime.txt").write_text(text)
 
 
+# ---------------------------------------------------------------------------
+# revival stages: the shape of the autocorrelation / mutual information first
+# ---------------------------------------------------------------------------
+# Buenner et al. (2000, Sec. III): autocorrelation and mutual information of
+# the intensity show a marked revival slightly beyond the delay (58 for 50,
+# 157 for 150, 407 for 400).  Criterion: the largest local maximum of each
+# beyond half the delay (lags up to 2 tau + REVIVAL_WINDOW, so that the
+# revival must dominate the second one near 2 tau and the Hopf harmonics)
+# lies in [tau, tau + REVIVAL_WINDOW]; the dominant period (peak of the power
+# spectrum at periods below PERIOD_CUTOFF) lies in HOPF_BAND.
+REVIVAL_SAMPLES = 30_000  # at 1 us
+REVIVAL_WINDOW = 15
+HOPF_BAND = (20.0, 32.0)
+REVIVAL_DELAYS = (50.0, 150.0)  # required; tau = 400 is reported for the final sets
+# the revival grid at tau = 50: (r, b0, beta) at the published alpha and sp, then
+# (r, b0) with alpha or sp changed (the published beta)
+RGRID_R = (110.0, 120.0, 130.0, 140.0, 150.0, 160.0, 170.0, 185.0, 200.0)
+RGRID_B0 = (0.09, 0.095, 0.1, 0.1031, 0.105, 0.11)
+RGRID_BETA = (0.3, 0.4286, 0.6)
+RGRID_ALPHA = (20.0, 50.0)
+RGRID_SP = (1e-5, 4e-5)
+ALPHA0, SP0, BETA0 = 32.8767, 2e-5, 0.4286
+# refinement around the only weakly chaotic family that passes (beta = 0.3,
+# r = 180-185, b0 = 0.09-0.095): (r, b0, beta), then alpha or sp changed
+RFINE_R = (175.0, 180.0, 185.0, 190.0, 195.0)
+RFINE_B0 = (0.09, 0.0925, 0.095, 0.0975, 0.1)
+RFINE_BETA = (0.27, 0.3, 0.33)
+RFINE_ALPHA_SP = ((25.0, SP0), (40.0, SP0), (ALPHA0, 1e-5), (ALPHA0, 4e-5))
+# spectra of the sets passing the revival criterion: (exponents, duration) per delay
+RSCAN_SPECTRUM = {50.0: (8, 8_000.0), 150.0: (20, 10_000.0), 400.0: (32, 10_000.0)}
+RFINAL_SPECTRUM = {50.0: (12, 40_000.0), 150.0: (24, 30_000.0), 400.0: (44, 20_000.0)}
+QR = 20.0  # us between QR steps in the revival stages
+N_RSPEC50 = 200  # at most this many revival-passing sets get a tau = 50 spectrum
+N_RSPEC150 = 16
+N_RSPEC400 = 4
+N_RFINAL = 2
+
+
+def revival_lags(series, tau):
+    """Lags of the largest ACF and MI maxima beyond tau / 2 (-1 if none) and their values."""
+    max_lag = int(2 * tau + REVIVAL_WINDOW)
+    out = {}
+    for name, fn in (("acf", autocorrelation), ("mi", mutual_information)):
+        c = fn(series, max_lag)
+        m = argrelmax(c)[0]
+        m = m[m > tau / 2]
+        lag = int(m[np.argmax(c[m])]) if m.size else -1
+        out[name] = lag
+        out[f"{name}_peak"] = float(c[lag]) if m.size else float("nan")
+    return out
+
+
+def revival(params, tau, seed=SEED):
+    """Revival lags, dominant period and modulation depth of one set at one delay."""
+    t0 = time.perf_counter()
+    row = {"kind": "revival", "tau": tau, **params, "n": REVIVAL_SAMPLES, "seed": seed}
+    try:
+        x = CO2LaserFeedback(tau=tau, **params).simulate(REVIVAL_SAMPLES, random_state=seed)
+        f, psd = welch(x - x.mean(), nperseg=4096)
+        band = f > 1.0 / PERIOD_CUTOFF
+        row.update(revival_lags(x, tau), period=float(1.0 / f[band][np.argmax(psd[band])]),
+                   depth=float(x.std() / x.mean()))
+    except (ValueError, FloatingPointError) as exc:  # diverged or constant
+        row["error"] = str(exc)[:120]
+    row["seconds"] = time.perf_counter() - t0
+    return row
+
+
+def revival_key(params, tau, seed=SEED):
+    return json.dumps({"kind": "revival", "tau": tau, **params, "n": REVIVAL_SAMPLES,
+                       "seed": seed}, sort_keys=True)
+
+
+def revival_misfit(row):
+    """Per ACF and MI: distance of the revival lag from [tau, tau + 15] in units of 15
+    (at most 2; 2 when there is no maximum); + 1 when the period is outside HOPF_BAND."""
+    if "error" in row:
+        return 5.0
+    lo, hi = row["tau"], row["tau"] + REVIVAL_WINDOW
+    total = 0.0
+    for name in ("acf", "mi"):
+        lag = row[name]
+        dist = max(lo - lag, lag - hi, 0.0) if lag >= 0 else np.inf
+        total += min(dist / REVIVAL_WINDOW, 2.0)
+    return total + float(not HOPF_BAND[0] <= row["period"] <= HOPF_BAND[1])
+
+
+def run_revivals(cache, jobs):
+    jobs = list({revival_key(*j): j for j in jobs}.values())
+    todo = [j for j in jobs if revival_key(*j) not in cache]
+    if todo:
+        rows = Parallel(n_jobs=2, batch_size=4)(delayed(revival)(*j) for j in todo)
+        for job, row in zip(todo, rows):
+            cache[revival_key(*job)] = {**row, "stage": "revival"}
+        save(cache)
+    return [cache[revival_key(*j)] for j in jobs]
+
+
+def revival_grid():
+    grid = [{"r": r, "b0": b0, "beta": beta, "alpha": ALPHA0, "sp": SP0}
+            for beta, r, b0 in itertools.product(RGRID_BETA, RGRID_R, RGRID_B0)]
+    grid += [{"r": r, "b0": b0, "beta": BETA0, "alpha": a, "sp": SP0}
+             for a, r, b0 in itertools.product(RGRID_ALPHA, RGRID_R, RGRID_B0)]
+    grid += [{"r": r, "b0": b0, "beta": BETA0, "alpha": ALPHA0, "sp": sp}
+             for sp, r, b0 in itertools.product(RGRID_SP, RGRID_R, RGRID_B0)]
+    grid += [{"r": r, "b0": b0, "beta": beta, "alpha": ALPHA0, "sp": SP0}
+             for beta, r, b0 in itertools.product(RFINE_BETA, RFINE_R, RFINE_B0)]
+    grid += [{"r": r, "b0": b0, "beta": 0.3, "alpha": a, "sp": sp}
+             for (a, sp), r, b0 in itertools.product(RFINE_ALPHA_SP, RFINE_R[1:4],
+                                                     (0.0925, 0.095))]
+    return grid
+
+
+def pkey(params):
+    return json.dumps(params, sort_keys=True)
+
+
+def stage_revival(cache):
+    """The revival criterion at tau = 50 on the grid (and the sets of the earlier
+    spectral scan), at tau = 150 for the passing sets and the 20 closest misses."""
+    old = [params_of(c) for c in cache.values() if c.get("stage") in OLD_STAGES]
+    grid = list({pkey(p): p for p in revival_grid() + old}.values())
+    rows50 = run_revivals(cache, [(p, 50.0) for p in grid])
+    ranked = sorted(rows50, key=revival_misfit)
+    take = [r for r in ranked if revival_misfit(r) == 0.0]
+    take += [r for r in ranked if revival_misfit(r) > 0.0][:20]
+    rows150 = run_revivals(cache, [(params_of(r), 150.0) for r in take])
+    return rows50, rows150
+
+
+def revivals_of(cache, params):
+    p = pkey(params)
+    return {c["tau"]: c for c in cache.values()
+            if c.get("kind") == "revival" and pkey(params_of(c)) == p}
+
+
+def spectra_of(cache, params):
+    """Revival-stage spectra of one set by delay (the longest one per delay)."""
+    p = pkey(params)
+    out = {}
+    for c in cache.values():
+        if c.get("stage") not in ("rspec", "rfinal") or pkey(params_of(c)) != p:
+            continue
+        best = out.get(c["tau"])
+        if best is None or c["duration"] * c["k"] > best["duration"] * best["k"]:
+            out[c["tau"]] = c
+    return out
+
+
+def total_misfit(cache, params, delays=DELAYS):
+    """Spectral misfit plus revival misfit, summed over the delays computed."""
+    rev, spec = revivals_of(cache, params), spectra_of(cache, params)
+    total = sum(revival_misfit(rev[t]) for t in REVIVAL_DELAYS if t in rev)
+    total += sum(5.0 for t in REVIVAL_DELAYS if t not in rev)
+    total += sum(misfit(spec[t]) for t in delays if t in spec)
+    return float(total)
+
+
+def run_spectra(cache, stage, jobs):
+    """Spectra (params, tau, k, duration, seed, qr) not yet cached, two at a time."""
+    jobs = list({key_of(*j): j for j in jobs}.values())
+    todo = [j for j in jobs if key_of(*j) not in cache]
+    if todo:
+        # the most expensive first (the other process fills in with the cheap ones)
+        todo.sort(key=lambda j: -j[1] * j[2] * j[3])
+        rows = Parallel(n_jobs=2)(delayed(evaluate)(*j) for j in todo)
+        for job, row in zip(todo, rows):
+            cache[key_of(*job)] = {**row, "stage": stage}
+        save(cache)
+    return [cache[key_of(*j)] for j in jobs]
+
+
+def stage_rspec(cache, tau, candidates, n_best):
+    """Screening spectra at tau of the n_best candidates (ranked by total misfit so far)."""
+    ranked = sorted(candidates, key=lambda p: total_misfit(cache, p, [t for t in DELAYS
+                                                                       if t < tau]))
+    k, duration = RSCAN_SPECTRUM[tau]
+    run_spectra(cache, "rspec", [(p, tau, k, duration, SEED, QR) for p in ranked[:n_best]])
+    return ranked[:n_best]
+
+
+def stage_rfinal(cache, candidates):
+    """Longer spectra and the revival at every delay for the best candidates."""
+    jobs = [(p, tau, *RFINAL_SPECTRUM[tau], SEED, QR) for p in candidates for tau in DELAYS]
+    run_spectra(cache, "rfinal", jobs)
+    run_revivals(cache, [(p, tau) for p in candidates for tau in DELAYS])
+
+
+def revival_passing(cache):
+    """Sets whose revival rows at 50 and 150 both pass, then the closest misses."""
+    sets = {}
+    for c in cache.values():
+        if c.get("kind") == "revival" and c["tau"] in REVIVAL_DELAYS:
+            sets.setdefault(pkey(params_of(c)), {})[c["tau"]] = c
+    both = [rows for rows in sets.values() if set(rows) >= set(REVIVAL_DELAYS)]
+    both.sort(key=lambda rows: sum(revival_misfit(rows[t]) for t in REVIVAL_DELAYS))
+    return [params_of(rows[50.0]) for rows in both]
+
+
+def fmt_rev(row):
+    if row is None:
+        return " " * 22
+    if "error" in row:
+        return f"{'(no oscillation)':>22}"
+    return f"{row['acf']:4d}/{row['mi']:4d} {row['period']:5.1f} {revival_misfit(row):4.1f}  "
+
+
+def fmt_set(cache, params):
+    """One block per parameter set: revival and spectrum at each delay, and the totals."""
+    rev, spec = revivals_of(cache, params), spectra_of(cache, params)
+    head = (f"r={params['r']:5.1f} b0={params['b0']:.4f} beta={params['beta']:.4f} "
+            f"alpha={params['alpha']:6.2f} sp={params['sp']:.0e}")
+    lines = [f"{head}   total misfit {total_misfit(cache, params):5.1f}"]
+    for tau in DELAYS:
+        line = f"  {tau:5.0f} {fmt_rev(rev.get(tau))}"
+        row = spec.get(tau)
+        if row is None:
+            line += "  (no spectrum)"
+        elif "error" in row:
+            line += f"  diverged ({row['error']})"
+        else:
+            dky = f"{'' if row['closed'] else '>='}{row['D_KY']:.1f}"
+            line += (f"{row['k']:3d} {row['duration']:6.0f} {row['N']:3d} "
+                     f"{row['lambda_max']:6.2f}+-{row['spread_max']:4.2f} {dky:>6} "
+                     f"{row['h_KS']:6.2f} {misfit(row):6.1f} "
+                     f"{'yes' if within_targets(row) else 'no':>4}")
+        lines.append(line)
+    return lines
+
+
+RHEADER = ("    tau ACF/MI lag period rmis   k  T(us)  N+  lam_max/ms  D_KY h_KS/ms "
+           "smisfit ok")
+
+
+def revival_summary(rows50, rows150):
+    """Counts of the revival screen: how many pass, and why the others fail."""
+    def count(rows, tau):
+        ok = [r for r in rows if revival_misfit(r) == 0.0]
+        err = [r for r in rows if "error" in r]
+        lag_ok = [r for r in rows if "error" not in r and revival_misfit(r) < 1.0
+                  and revival_misfit(r) > 0.0]
+        return (f"tau = {tau:.0f}: {len(rows)} sets, {len(ok)} pass, {len(err)} without "
+                f"oscillation, {len(lag_ok)} within one window of passing")
+    return [count(rows50, 50.0), count(rows150, 150.0)]
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--stage", choices=("all", "scan50", "check150", "check400", "final"),
-                        default="all")
+    stages_all = ("scan50", "check150", "check400", "final", "revival", "rspec", "rfinal")
+    parser.add_argument("--stage", choices=("all",) + stages_all, default="all")
     args = parser.parse_args()
     cache = json.loads(CACHE.read_text()) if CACHE.exists() else {}
-    stages = ("scan50", "check150", "check400", "final") if args.stage == "all" \
-        else (args.stage,)
+    stages = stages_all if args.stage == "all" else (args.stage,)
     t0 = time.perf_counter()
-    rows50 = stage_scan50(cache)
-    sections = [(f"scan at tau = 50 (best 25 of {len(rows50)})",
-                 sorted(rows50, key=misfit)[:25])]
+    sections = []
+    if set(stages) & set(OLD_STAGES):
+        rows50 = stage_scan50(cache)
+        sections.append((f"scan at tau = 50 (best 25 of {len(rows50)})",
+                         sorted(rows50, key=misfit)[:25]))
     if "check150" in stages or "check400" in stages:
         rows150 = stage_check(cache, rows50, 150.0, N_CHECK150, "check150")
         sections.append(("best tau = 50 points at tau = 150", rows150))
@@ -294,8 +555,32 @@ def main():
         sections.append(("parameter sets computed at all three delays, by total misfit",
                          all_delays(cache)))
     if "final" in stages:
-        sections.append(("preset 'buenner2000' (CO2LaserFeedback.from_preset), final spectra",
+        sections.append(("first preset 'buenner2000' (r=120, b0=0.1), final spectra",
                          stage_final(cache)))
+    if set(stages) & {"revival", "rspec", "rfinal"}:
+        r50, r150 = stage_revival(cache)
+        sections.append((("revival screen (ACF/MI revival in [tau, tau+15], period in "
+                         f"{HOPF_BAND} us, {REVIVAL_SAMPLES} samples)"),
+                         revival_summary(r50, r150), ""))
+    if set(stages) & {"rspec", "rfinal"}:
+        cand = stage_rspec(cache, 50.0, revival_passing(cache), N_RSPEC50)
+        cand = stage_rspec(cache, 150.0, cand, N_RSPEC150)
+        cand = stage_rspec(cache, 400.0, cand, N_RSPEC400)
+        ranked = sorted(revival_passing(cache)[:N_RSPEC50],
+                        key=lambda p: (-len(spectra_of(cache, p)), total_misfit(cache, p)))
+        lines = []
+        for p in ranked[:30]:
+            lines += fmt_set(cache, p)
+        sections.append((("sets screened by revival, by total misfit (revival + spectra; "
+                         f"spectra k, T with QR every {QR:.0f} us)"), lines, RHEADER))
+    if "rfinal" in stages:
+        best = sorted(cand, key=lambda p: total_misfit(cache, p))[:N_RFINAL]
+        stage_rfinal(cache, best)
+        lines = []
+        for p in best:
+            lines += fmt_set(cache, p)
+        sections.append((("final candidates: longer spectra (k, T per delay "
+                         f"{RFINAL_SPECTRUM})"), lines, RHEADER))
     report(sections)
     print(f"{time.perf_counter() - t0:.0f} s")
 
