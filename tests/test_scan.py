@@ -27,7 +27,7 @@ def mg30():
         ({"order": 2}, r"order must be 0 \(local constant\) or 1 \(local linear\), got 2"),
         ({"k": 10, "n_candidates": 5},
          r"n_candidates=5 is smaller than n_neighbors=10: .* use n_candidates >= 10"),
-        ({"search": "kd"}, r"search must be 'candidates' or 'exact', got 'kd'"),
+        ({"search": "kd"}, r"search must be 'sweep', 'candidates' or 'exact', got 'kd'"),
         ({"neighbourhood": "x"}, r"equal_neighbourhood must be False"),
         ({"n_queries": 0}, r"n_queries must be >= 1"),
     ],
@@ -219,3 +219,33 @@ def test_progress_bar_and_shared_arrays(mg30, capsys, monkeypatch):
     # chunks of different sizes: numpy's std may round the last bit differently
     np.testing.assert_allclose(shared.attrs["se"].to_numpy(), ref.attrs["se"].to_numpy(),
                                rtol=1e-12)
+
+
+# ----------------------------------------------------------------------------- searches
+def test_sweep_search_is_the_exact_knn():
+    # unquantised data: no equal distances, so the exact k-NN is unique
+    s = measured_mackey_glass(3000, 30, noise=0.01, bits=None, seed=5)
+    kw = {"m": (2, 4), "tau": range(1, 41), "n_queries": 300, "refine": False,
+          "random_state": 0}
+    sweep = forecast_error_curve(s, search="sweep", **kw)
+    exact = forecast_error_curve(s, search="exact", **kw)
+    np.testing.assert_allclose(sweep.to_numpy(), exact.to_numpy(), rtol=1e-9)
+    assert sweep.attrs["exact_fraction"] == {2: 1.0, 4: 1.0}
+    # the candidate lists miss true neighbours here (what sweep is for)
+    cand = forecast_error_curve(s, search="candidates", **kw)
+    assert np.abs(cand.to_numpy() / exact.to_numpy() - 1).max() > 1e-6
+    assert min(cand.attrs["exact_fraction"].values()) < 1
+
+
+def test_sweep_visit_cap_counts_inexact_neighbourhoods(monkeypatch):
+    import skdelay._scan as scan
+
+    s = measured_mackey_glass(3000, 30, noise=0.01, bits=None, seed=5)
+    kw = {"m": (3,), "tau": range(25, 36), "n_queries": 200, "refine": False,
+          "random_state": 0, "search": "sweep"}
+    full = forecast_error_curve(s, **kw)
+    monkeypatch.setattr(scan, "MAX_VISIT", 40)  # stop every search after 40 points
+    capped = forecast_error_curve(s, **kw)
+    assert capped.attrs["exact_fraction"][3] < 0.5 < full.attrs["exact_fraction"][3] == 1.0
+    assert np.all(np.isfinite(capped.to_numpy()))
+    assert np.all(capped.to_numpy() >= 0.5 * full.to_numpy())
