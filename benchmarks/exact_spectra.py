@@ -110,6 +110,9 @@ def main(argv=None):
     parser.add_argument("--n-runs", type=int, default=4, help="runs per round")
     parser.add_argument("--max-rounds", type=int, default=3)
     parser.add_argument("--n-jobs", type=int, default=2)
+    parser.add_argument("--n-exponents", type=int, nargs="+", default=None,
+                        help="exponents per delay (default N_EXPONENTS; more for a more "
+                             "chaotic parameter set, so that D_KY closes)")
     args = parser.parse_args(argv)
 
     old = json.loads(DATA.read_text()) if DATA.exists() else {}
@@ -120,10 +123,12 @@ def main(argv=None):
              "# " + " ".join([Path(sys.executable).name, *sys.argv]),
              (f"exact spectra of CO2LaserFeedback preset {PRESET!r} (per ms); error = "
              f"standard error between independent runs; converged when the error of each "
-             f"of the leading {LEADING} exponents is <= {TOLERANCE:.0%} of lambda_max"), ""]
+             f"of the leading {LEADING} exponents is <= {TOLERANCE:.0%} of its size (lambda_max for "
+              "exponents near zero)"), ""]
+    counts = dict(zip(args.delays, args.n_exponents)) if args.n_exponents else N_EXPONENTS
     for delay in args.delays:
         system = laser_system(delay)
-        k = N_EXPONENTS[delay]
+        k = counts[delay]
         runs, seed = [], 1
         for _ in range(args.max_rounds):
             new = Parallel(n_jobs=args.n_jobs)(

@@ -1,8 +1,8 @@
 """The paper's Lyapunov table (Buenner et al. 2000, Tab. 3) on the laser-like example data.
 
-Run: ``python benchmarks/paper_table.py`` (20-40 minutes on 2 cores the first
-time: the exact spectra of the simulator dominate and are cached in
-``benchmarks/out/laser_exact.json``).
+Run: ``python benchmarks/paper_table.py`` (a few minutes on 2 cores; the exact
+spectra are the shipped converged ones of :func:`skdelay.datasets.laser_exact_spectrum`,
+made by ``benchmarks/exact_spectra.py``).
 
 For each delay (50, 150, 400 microseconds = samples) of
 ``skdelay.datasets.load_laser`` (1e5 samples, 12-bit, 0.5 % measurement and
@@ -26,7 +26,7 @@ import pandas as pd
 from sklearn.pipeline import make_pipeline
 
 from skdelay import LocalLinearDelayMap, TwoWindowEmbedding, lagged_windows, required_lags
-from skdelay.datasets import load_laser
+from skdelay.datasets import laser_exact_spectrum, load_laser
 from skdelay.dynamics import dimension_density, lyapunov_spectrum
 
 OUT = Path(__file__).resolve().parent / "out"
@@ -52,23 +52,16 @@ def summary(lam, spread, delay):
             "closed": d_ky < lam.size}
 
 
-def exact_spectra(delays, refresh):
-    path = OUT / "laser_exact.json"
-    cache = json.loads(path.read_text()) if path.exists() and not refresh else {}
+def exact_spectra(delays):
+    """The shipped converged exact spectra (``benchmarks/exact_spectra.py``)."""
+    out = {}
     for delay in delays:
-        if str(delay) in cache:
-            continue
-        system = load_laser(delay).system
-        t0 = time.perf_counter()
-        spec = system.lyapunov_spectrum(EXACT_EXPONENTS[delay], random_state=0)
-        cache[str(delay)] = {"exponents": spec.exponents.tolist(),
-                             "spread": spec.spread.tolist(),
-                             "seconds": time.perf_counter() - t0}
-        OUT.mkdir(exist_ok=True)
-        tmp = path.with_suffix(".tmp")
-        tmp.write_text(json.dumps(cache))
-        tmp.replace(path)
-    return cache
+        spec = laser_exact_spectrum(delay)
+        if spec is None:
+            raise SystemExit("no shipped exact spectrum for the laser's parameters: run "
+                             "python benchmarks/exact_spectra.py first")
+        out[str(delay)] = {"exponents": spec.exponents.tolist(), "spread": spec.spread.tolist()}
+    return out
 
 
 def estimated_spectrum(delay, m, k, ridge, n_samples):
@@ -91,10 +84,9 @@ def main():
     parser.add_argument("--ridge", type=float, default=3e-2)
     parser.add_argument("--n-samples", type=int, default=100_000)
     parser.add_argument("--delays", type=int, nargs="+", default=[50, 150, 400])
-    parser.add_argument("--refresh-exact", action="store_true")
     args = parser.parse_args()
 
-    exact = exact_spectra(args.delays, args.refresh_exact)
+    exact = exact_spectra(args.delays)
     rows, est_spectra, ex_spectra = [], {}, {}
     for delay in args.delays:
         spec, seconds = estimated_spectrum(delay, args.m, args.k, args.ridge, args.n_samples)
