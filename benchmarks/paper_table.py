@@ -17,7 +17,6 @@ to ``benchmarks/out/rescaled_spectra.png``.
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from pathlib import Path
 
