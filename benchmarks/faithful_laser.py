@@ -28,17 +28,15 @@ import time
 import numpy as np
 import pandas as pd
 
-import skdelay.dynamics
 from skdelay import forecast_error_curve, locate_dips
 from skdelay.datasets import LASER_BITS, LASER_DYNAMICAL_NOISE, LASER_MEASUREMENT_NOISE
 from skdelay.dynamics import minimal_embedding
+from skdelay.model_selection import ModelOptions
 from skdelay.systems import CO2LaserFeedback, measure
 
 PRESETS = ("buenner2000", "pisarchik2001")
-#: the demo's models (100 neighbours, ridge 3e-2); ModelOptions is not public yet, so this
-#: falls back to the defaults (the recorded outputs were made with the demo's models)
-DEMO_MODEL = skdelay.dynamics.ModelOptions(n_neighbors=100, ridge=3e-2) if hasattr(
-    skdelay.dynamics, "ModelOptions") else None
+#: the demo's models (100 neighbours, ridge 3e-2)
+DEMO_MODEL = ModelOptions(n_neighbors=100, ridge=3e-2)
 SEEDS = {50: 5001, 150: 15001, 400: 40001}  # those of skdelay.datasets.load_laser
 DELAYS = (50, 150, 400)
 COLUMNS = ["tau", "faithful", "histogram", "histogram_band", "spectrum", "spectrum_band",
