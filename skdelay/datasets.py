@@ -69,11 +69,11 @@ def data_home():
     return path
 
 
-#: the simulator's parameter set (``CO2LaserFeedback.PRESETS``).  "buenner2000", the
-#: regime closest to the paper's experiment found by ``benchmarks/laser_regime.py``, is
-#: not yet the default: its delay transplant and correlation revivals differ from the
-#: present data's and are being re-validated (issue 12).
-LASER_PRESET = "pisarchik2001"
+#: the simulator's parameter set (``CO2LaserFeedback.PRESETS``): "buenner2000", the regime
+#: closest to the paper's experiment in the scan ``benchmarks/laser_regime.py`` (the
+#: defaults of :class:`~skdelay.systems.CO2LaserFeedback`); "pisarchik2001" is the older,
+#: about three times more chaotic set.
+LASER_PRESET = "buenner2000"
 
 
 def _laser_system(delay):

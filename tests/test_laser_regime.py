@@ -9,8 +9,10 @@ from skdelay.systems import CO2LaserFeedback
 SEED = 1  # the seed of the scan (periodic windows lie close by at tau = 50)
 
 
-def test_pisarchik_preset_is_the_default_and_presets_override():
-    assert CO2LaserFeedback.from_preset("pisarchik2001", tau=50.0) == CO2LaserFeedback(tau=50.0)
+def test_buenner_preset_is_the_default_and_presets_override():
+    assert CO2LaserFeedback.from_preset("buenner2000", tau=50.0) == CO2LaserFeedback(tau=50.0)
+    old = CO2LaserFeedback.from_preset("pisarchik2001", tau=50.0)
+    assert (old.params["r"], old.params["b0"]) == (160.0, 0.1031)
     laser = CO2LaserFeedback.from_preset("buenner2000", tau=400.0, sp=1e-5)
     assert laser.params["tau"] == 400.0 and laser.params["sp"] == 1e-5
     for key, value in CO2LaserFeedback.PRESETS["buenner2000"].items():

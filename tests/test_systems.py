@@ -271,7 +271,7 @@ def test_ikeda_spectrum_vicente_2005():
 def test_co2_laser_period_chaos_and_growing_number_of_positive_exponents():
     n_positive = {}
     for tau, k, duration in ((50.0, 6, 3000), (150.0, 10, 3000), (400.0, 12, 6000)):
-        laser = CO2LaserFeedback(tau=tau)
+        laser = CO2LaserFeedback.from_preset("pisarchik2001", tau=tau)
         x = laser.simulate(20_000, random_state=1)
         assert x.min() > 0
         # the Hopf (relaxation) band of the feedback loop: periods ~20-30 us

@@ -82,76 +82,69 @@ class CO2LaserFeedback(DelaySystem):
         Delay of the feedback line, microseconds.
     k0, k1, g1, g2, g, p0, z, beta, alpha, r, b0 : float
         Model parameters (rates in 1/microsecond); the defaults are the
-        published values (see Notes).
+        published values except the gain ``r = 195``, bias ``b0 = 0.0975``
+        and amplifier bandwidth ``beta = 0.27``, the regime of the
+        experiment of Buenner et al. (preset ``"buenner2000"``, see Notes).
     sp : float, default=2e-5
         Spontaneous-emission source of the intensity (1/microsecond).
 
     Notes
     -----
-    The six-variable model and all parameter values except ``sp`` are those
-    of A. N. Pisarchik, R. Meucci and F. T. Arecchi, Eur. Phys. J. D 13, 385
-    (2001) (also J. G. Freire, R. Meucci, F. T. Arecchi and J. A. C. Gallas,
-    Chaos 25, 097607 (2015)), whose time unit is one microsecond
-    (``k0 = 2.86e7 / s``).  The delay line is that of F. T. Arecchi,
-    G. Giacomelli, A. Lapucci and R. Meucci, Phys. Rev. A 43, 4997 (1991) and
-    of the experiment analysed by M. J. Buenner et al., Phys. Rev. E 61
-    (2000): the delayed intensity replaces the instantaneous one in the
-    feedback equation.  The published model has no spontaneous emission; on
-    the long off-phases of the delayed loop the intensity then decays to
-    ~1e-40 and the pulse timing depends on the floor of floating point.  The
-    small source ``sp = 2e-5`` (intensity floor ~1e-6 of the lasing level
-    scale) keeps the off-phases physical; with it the laser oscillates at
-    the relaxation (Hopf) frequency of the feedback loop, dominant period
-    about 25 microseconds (40 kHz, as in the experiment), with a deep chaotic
-    modulation paced by the delay.  Lyapunov spectra (``dt = 0.02``):
-    ``tau = 50``: about 4 positive exponents, largest ~9 per ms; ``tau = 150``:
-    about 10, largest ~3 per ms; ``tau = 400``: more than 16, largest
-    ~1.5 per ms -- the number of positive exponents grows with the delay and
-    the largest one decreases, as in the experiment (1, 4, 11 positive;
-    2.5, 1.4, 0.55 per ms).  The intensity relaxes at up to
-    ``k0 (1 + k1) ~ 130`` per microsecond, so RK4 needs ``dt <= 0.02``
-    (``max_dt``).
+    The six-variable model and the parameter values except ``sp``, ``r``,
+    ``b0`` and ``beta`` are those of A. N. Pisarchik, R. Meucci and F. T. Arecchi,
+    Eur. Phys. J. D 13, 385 (2001) (also J. G. Freire, R. Meucci,
+    F. T. Arecchi and J. A. C. Gallas, Chaos 25, 097607 (2015)), whose time
+    unit is one microsecond (``k0 = 2.86e7 / s``).  The delay line is that of
+    F. T. Arecchi, G. Giacomelli, A. Lapucci and R. Meucci, Phys. Rev. A 43,
+    4997 (1991) and of the experiment analysed by M. J. Buenner et al.,
+    Phys. Rev. E 61 (2000): the delayed intensity replaces the instantaneous
+    one in the feedback equation.  The published model has no spontaneous
+    emission; on the long off-phases of the delayed loop the intensity then
+    decays to ~1e-40 and the pulse timing depends on the floor of floating
+    point.  The small source ``sp = 2e-5`` (intensity floor ~1e-6 of the
+    lasing level scale) keeps the off-phases physical; with it the laser
+    oscillates at the relaxation (Hopf) frequency of the feedback loop,
+    dominant period about 25 microseconds (40 kHz, as in the experiment),
+    with a deep chaotic modulation paced by the delay.  The intensity relaxes
+    at up to ``k0 (1 + k1) ~ 130`` per microsecond, so RK4 needs
+    ``dt <= 0.02`` (``max_dt``).
 
-    These defaults are about three times more chaotic than the experiment of
-    Buenner et al. (exact spectra at ``tau = 50``: 5 positive exponents,
-    largest 7.3 per ms, ``D_KY`` 8.6, ``h_KS`` 20 per ms, against the
-    paper's 1, 2.5, 3.4 and 2.5).  ``PRESETS`` names values of the
-    parameters the published model leaves open for that experiment (gain
-    ``r``, bias ``b0``, bandwidth ``beta``, saturation ``alpha``,
-    spontaneous emission ``sp``); :meth:`from_preset` builds them:
+    The published gain and bias (``r = 160``, ``b0 = 0.1031``) make the
+    laser about three times more chaotic than the experiment (exact spectra
+    at ``tau = 50``: 5 positive exponents, largest 7.3 per ms, ``D_KY`` 8.6,
+    ``h_KS`` 20 per ms, against the paper's 1, 2.5, 3.4 and 2.5).  The gain
+    ``r``, bias ``b0``, bandwidth ``beta``, saturation ``alpha`` and
+    ``sp`` are what the published model leaves open for that experiment;
+    ``PRESETS`` names two sets and :meth:`from_preset` builds them:
 
+    ``"buenner2000"`` (the defaults)
+        ``r = 195``, ``b0 = 0.0975``, ``beta = 0.27`` (the others as
+        published): the set closest to the paper over all three delays in
+        the scan ``benchmarks/laser_regime.py`` (647 sets of ``r``, ``b0``,
+        ``beta``, ``alpha``, ``sp``; tables in ``benchmarks/out/``), which
+        asks for the paper's Tab. 3 *and* its Sec. III signature: the
+        largest autocorrelation and mutual-information maximum beyond half
+        the delay lies just beyond the delay (62, 162 and 412 us here; the
+        paper: 58, 157, 407).  Most sets with that revival are far too
+        chaotic at ``tau = 50``; weakly chaotic ones need the lower
+        bandwidth.  An earlier set with the published bandwidth (``r = 120``,
+        ``b0 = 0.1``) matched the table as well but its Hopf oscillation was
+        so coherent that the revival at the delay vanished.  Exact spectra
+        (per ms) are shipped with the package
+        (:func:`skdelay.datasets.laser_exact_spectrum`, made by
+        ``benchmarks/exact_spectra.py``, converged to 5 %): at ``tau`` = 50,
+        150, 400: N+ 2, 6, 17; lambda_max 2.29, 0.97, 0.45; D_KY 4.3, 13.1,
+        32.7; h_KS 2.9, 3.7, 3.7 (paper: 1, 4, 11; 2.5, 1.4, 0.55; 3.4,
+        10.2, 23.8; 2.5, 3.3, 3.0), within the tolerances of the project's
+        reproduction issue at 50 and 150 us; at 400 us N+ (17 for 8-15) and
+        D_KY (+37 %) are too large.  Close by in
+        ``(r, b0)`` the chaos at ``tau = 400`` weakens (``r = 190``: 7
+        positive exponents), and periodic windows lie close by at
+        ``tau = 50``, as the paper reports for the experiment.
     ``"pisarchik2001"``
-        the defaults above.
-    ``"buenner2000"``
-        ``r = 120`` and ``b0 = 0.1`` (the others as published), the set
-        closest to the paper's Tab. 3 over all three delays in the scan
-        ``benchmarks/laser_regime.py`` (table:
-        ``benchmarks/out/laser_regime.txt``).  Exact spectra (per ms,
-        ``random_state=1``, spreads are block standard errors):
-
-        ========  ====  ===============  ====  =====  ================
-        tau (us)  N+    lambda_max       D_KY  h_KS   paper
-        ========  ====  ===============  ====  =====  ================
-        50        2     2.8 +- 0.2       5.0   3.9    1, 2.5, 3.4, 2.5
-        150       6     0.76 +- 0.07     14.1  3.0    4, 1.4, 10.2, 3.3
-        400       10    0.31 +- 0.03     28.2  1.65   11, 0.55, 23.8, 3.0
-        ========  ====  ===============  ====  =====  ================
-
-        with the dominant oscillation at 24-27 us.  N+ is within the ranges
-        of issue 12 (at most 2, 3-6, 8-15), and at ``tau = 400`` ``D_KY``
-        (``D_KY / tau`` 70 per ms, paper 59) and ``h_KS`` are too; but the
-        largest exponent is about half the measured one at the long delays
-        (the model's spectrum is flatter: at ``tau = 150`` it has 6 positive
-        exponents instead of 4 and ``D_KY`` 14 instead of 10), and
-        ``tau = 50`` is about 1.5 times too chaotic (``D_KY``, ``h_KS``).
-        No scanned set met the tolerances at all three delays: the sets weak
-        enough at ``tau = 50`` are too weakly chaotic at 400, and the lower
-        bandwidth ``beta = 0.3`` that matches 50 and 150 loses its chaos at
-        400.  The experiment retuned the bias between
-        the delays; ``b0 = 0.095`` at ``tau = 50`` gives 2, 2.4, 4.2, 3.4.
-        At ``tau = 50`` periodic windows lie close by in ``(r, b0)`` (as the
-        paper reports for the experiment and its model), so small changes of
-        the parameters can make that case periodic.
+        the published ``r = 160``, ``b0 = 0.1031``: ``tau = 50``: about 4-5
+        positive exponents, largest ~7-9 per ms; ``tau = 150``: about 10-15,
+        largest ~2-3 per ms; ``tau = 400``: more than 16.
 
     Examples
     --------
@@ -174,13 +167,13 @@ class CO2LaserFeedback(DelaySystem):
     PRESETS: ClassVar[dict] = {
         "pisarchik2001": {"r": 160.0, "b0": 0.1031, "beta": 0.4286, "alpha": 32.8767,
                           "sp": 2e-5},
-        "buenner2000": {"r": 120.0, "b0": 0.1, "beta": 0.4286, "alpha": 32.8767, "sp": 2e-5},
+        "buenner2000": {"r": 195.0, "b0": 0.0975, "beta": 0.27, "alpha": 32.8767, "sp": 2e-5},
     }
     _rhs = staticmethod(_co2_rhs)
     _jac = staticmethod(_co2_jac)
 
     def __init__(self, tau=150.0, k0=28.5714, k1=4.5556, g1=10.0643, g2=1.0643, g=0.05,
-                 p0=0.016, z=10.0, beta=0.4286, alpha=32.8767, r=160.0, b0=0.1031, sp=2e-5):
+                 p0=0.016, z=10.0, beta=0.27, alpha=32.8767, r=195.0, b0=0.0975, sp=2e-5):
         super().__init__(tau=tau, k0=k0, k1=k1, g1=g1, g2=g2, g=g, p0=p0, z=z, beta=beta,
                          alpha=alpha, r=r, b0=b0, sp=sp)
 
@@ -190,10 +183,10 @@ class CO2LaserFeedback(DelaySystem):
 
         Parameters
         ----------
-        name : {"pisarchik2001", "buenner2000"}
-            ``"pisarchik2001"``: the published parameters (the defaults);
+        name : {"buenner2000", "pisarchik2001"}
             ``"buenner2000"``: the regime of the experiment of Buenner et al.
-            (2000) (see the class Notes).
+            (2000), the defaults; ``"pisarchik2001"``: the published gain and
+            bias, about three times more chaotic (see the class Notes).
         tau : float, default=150.0
             Delay of the feedback line, microseconds.
         **params
@@ -206,7 +199,7 @@ class CO2LaserFeedback(DelaySystem):
         Examples
         --------
         >>> from skdelay.systems import CO2LaserFeedback
-        >>> CO2LaserFeedback.from_preset("pisarchik2001", tau=50.0) == CO2LaserFeedback(tau=50.0)
+        >>> CO2LaserFeedback.from_preset("buenner2000", tau=50.0) == CO2LaserFeedback(tau=50.0)
         True
         """
         if name not in cls.PRESETS:
