@@ -10,16 +10,19 @@ their bounding boxes so the search prunes with the exact box distance.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 LEAF_SIZE = 12
 
 
 @njit(cache=True)
-def build_tree(data):
-    """Return ``(perm, start, stop, left, right, box_lo, box_hi)`` for ``data`` (n, d)."""
+def build_tree(data, leaf_size=LEAF_SIZE):
+    """Return ``(perm, start, stop, left, right, box_lo, box_hi)`` for ``data`` (n, d).
+
+    Nodes of at most ``leaf_size`` points are leaves.
+    """
     n, d = data.shape
-    max_nodes = 2 * (n // max(LEAF_SIZE // 2, 1)) + 3
+    max_nodes = 2 * (n // max(leaf_size // 2, 1)) + 3
     perm = np.arange(n)
     start = np.zeros(max_nodes, dtype=np.int64)
     stop = np.zeros(max_nodes, dtype=np.int64)
@@ -45,7 +48,7 @@ def build_tree(data):
                 v = data[row, j]
                 box_lo[node, j] = min(box_lo[node, j], v)
                 box_hi[node, j] = max(box_hi[node, j], v)
-        if hi - lo <= LEAF_SIZE:
+        if hi - lo <= leaf_size:
             continue
         dim = 0
         widest = -1.0
@@ -127,3 +130,120 @@ def query_knn(data, tree, q, k, best_d, best_i, stack):
             stack[sp] = a
             stack[sp + 1] = b
         sp += 2
+
+
+@njit(cache=True)
+def _knn_seeded(sdata, sids, tree, q, k, t, theiler, bound, best_d, best_i, stack):
+    """k nearest rows of the tree-ordered ``sdata`` to ``q``, skipping ids within ``theiler``.
+
+    Like :func:`query_knn`, but the tree's points are stored in tree order
+    (``sdata[p]`` is the point at position ``p``, ``sids[p]`` its id), ids
+    ``|sids[p] - t| <= theiler`` are skipped (``theiler < 0``: none), and
+    ``bound`` (squared) is an upper bound of the k-th distance known in
+    advance (``np.inf`` if none): boxes and points beyond it are pruned from
+    the start.  Returns the number of neighbours found (< k only when fewer
+    eligible points exist).
+    """
+    _, start, stop, left, right, box_lo, box_hi = tree
+    d = sdata.shape[1]
+    for j in range(k):
+        best_d[j] = np.inf
+        best_i[j] = -1
+    found = 0
+    stack[0] = 0
+    sp = 1
+    while sp > 0:
+        sp -= 1
+        node = stack[sp]
+        bd = _box_dist2(q, box_lo[node], box_hi[node])
+        if bd >= best_d[k - 1] or bd > bound:
+            continue
+        if left[node] < 0:
+            for p in range(start[node], stop[node]):
+                s = 0.0
+                for j in range(d):
+                    x = sdata[p, j] - q[j]
+                    s += x * x
+                if s >= best_d[k - 1] or s > bound:
+                    continue
+                ident = sids[p]
+                if theiler >= 0 and abs(ident - t) <= theiler:
+                    continue
+                pos = k - 1
+                while pos > 0 and best_d[pos - 1] > s:
+                    best_d[pos] = best_d[pos - 1]
+                    best_i[pos] = best_i[pos - 1]
+                    pos -= 1
+                best_d[pos] = s
+                best_i[pos] = ident
+                if found < k:
+                    found += 1
+            continue
+        a, b = left[node], right[node]
+        da = _box_dist2(q, box_lo[a], box_hi[a])
+        db = _box_dist2(q, box_lo[b], box_hi[b])
+        if da <= db:
+            stack[sp] = b
+            stack[sp + 1] = a
+        else:
+            stack[sp] = a
+            stack[sp + 1] = b
+        sp += 2
+    return found
+
+
+@njit(cache=True, parallel=True)
+def window_knn_lists(s, m, is_member, tree, sdata, sids, needed, k, theiler, n_chunks,
+                     lists, rk2):
+    """``k`` nearest member windows of every needed time, compiled and threaded.
+
+    The window of time ``t`` is ``s[t - lag]``, ``lag = 0..m-1``; ``tree``
+    (:func:`build_tree`) indexes the member windows stored in tree order
+    (``sdata``, ids ``sids``).  Members within ``theiler`` samples of ``t``
+    are skipped (``theiler < 0``: none), so a list holds the ``k`` nearest
+    eligible members (``-1`` pads it only when fewer exist).  Fills ``lists``
+    (``(needed.size, k)``, ascending distance) and ``rk2`` (squared distance of
+    the ``k``-th neighbour, ``inf`` for a short list): every eligible member
+    outside a list is at least that far away.
+
+    The needed times are cut into ``n_chunks`` runs searched in parallel; within
+    a run, a time ``t`` following ``t - 1`` starts from the bound given by the
+    neighbours of ``t - 1`` shifted by one sample (``j + 1`` shares ``m - 1``
+    coordinates with ``j``), which prunes most of the tree at once.
+    """
+    n = needed.size
+    bounds = np.linspace(0, n, n_chunks + 1).astype(np.int64)
+    n_max = is_member.size
+    for ch in prange(n_chunks):
+        best_d = np.empty(k)
+        best_i = np.empty(k, dtype=np.int64)
+        seed_d = np.empty(k)
+        q = np.empty(m)
+        stack = np.empty(256, dtype=np.int64)
+        prev_full = False
+        for r in range(bounds[ch], bounds[ch + 1]):
+            t = needed[r]
+            for lag in range(m):
+                q[lag] = s[t - lag]
+            bound = np.inf
+            if prev_full and r > 0 and needed[r - 1] == t - 1:
+                ok = True
+                for c in range(k):
+                    j = np.int64(lists[r - 1, c]) + 1
+                    if j >= n_max or not is_member[j] or (theiler >= 0
+                                                           and abs(j - t) <= theiler):
+                        ok = False
+                        break
+                    acc = 0.0
+                    for lag in range(m):
+                        x = s[j - lag] - q[lag]
+                        acc += x * x
+                    seed_d[c] = acc
+                if ok:
+                    bound = seed_d.max()
+            found = _knn_seeded(sdata, sids, tree, q, k, t, theiler, bound, best_d, best_i,
+                                stack)
+            for c in range(k):
+                lists[r, c] = best_i[c] if c < found else -1
+            rk2[r] = best_d[k - 1] if found == k else np.inf
+            prev_full = found == k

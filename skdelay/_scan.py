@@ -68,6 +68,7 @@ from dataclasses import dataclass
 from itertools import pairwise
 from numbers import Real
 
+import numba
 import numpy as np
 from joblib import Parallel, delayed, effective_n_jobs
 from numba import njit
@@ -76,7 +77,7 @@ from scipy.spatial import cKDTree
 from skdelay._checks import check_positive_int, check_random_state
 from skdelay._dips import locate_dips
 from skdelay._embedding import second_window_start, two_window_columns
-from skdelay._kdtree import build_tree
+from skdelay._kdtree import build_tree, window_knn_lists
 from skdelay._neighbours import (
     RADIUS_CAP,
     chunk_slices,
@@ -123,6 +124,11 @@ TASKS_PER_WORKER = 4
 #: time.  10^5 rows keep the accurate 8k candidates; 10^6 rows get 67 (the paper-scale
 #: scan, where 240 took over 10 minutes of single-threaded k-d tree queries per m).
 LIST_BYTES = 1 << 28
+#: Leaf size of the k-d tree of the candidate lists: lists of tens of neighbours read
+#: many leaves, and larger leaves cut the node overhead (measured on 10^6 noisy 12-bit
+#: Mackey-Glass points, 67 neighbours, one thread: m = 5 lists 29 / 17 / 17 / 19 us per
+#: time at leaf sizes 12 / 64 / 128 / 256; m = 2: 11 / 8 / 8 / 10 us).
+LIST_LEAF_SIZE = 64
 #: Arrays larger than this (bytes) are handed to process workers as one memory map
 #: written once, instead of joblib hashing and dumping them again for every task.
 SHARE_BYTES = 1 << 24
@@ -701,32 +707,43 @@ def candidate_lists(s, m, members, needed, n_list, theiler, workers=1):
 
     Neighbours come from ``members`` (times); with ``theiler`` (None: no
     exclusion), members within ``theiler`` samples of the needed time are
-    dropped (from ``n_list`` plus a margin of nearest, so fewer may remain).
-    Returns ``lists`` (int32, ``(needed.size, n_list)``) and ``rk2``, the
-    squared distance of the last neighbour queried: every member outside a
-    list is at least that far away.
+    skipped during the search, so every list holds the ``n_list`` nearest
+    eligible members (-1 pads a list only when fewer exist).  Returns
+    ``lists`` (int32, ``(needed.size, n_list)``) and ``rk2``, the squared
+    distance of the last neighbour (``inf`` for a short list): every eligible
+    member outside a list is at least that far away.
+
+    One compiled k-d tree search per needed time
+    (:func:`skdelay._kdtree.window_knn_lists`), threaded over ``workers``
+    threads; consecutive needed times start from the shifted neighbours of
+    their predecessor, which bounds the search at once.
     """
-    first = np.arange(m)
-    tree = cKDTree(s[members[:, None] - first])
-    # query a margin for the Theiler-excluded times; on long records the temporal
-    # neighbours are rarely among the nearest, so the margin is capped (a list may then
-    # hold fewer than n_list valid entries, and the bound stays valid)
-    excl = 0 if theiler is None else min(2 * theiler + 1, max(n_list // 2, 1))
-    kq = min(members.size, n_list + excl)
+    members = np.asarray(members, dtype=np.int64)
+    needed = np.ascontiguousarray(needed, dtype=np.int64)
+    data = np.ascontiguousarray(s[members[:, None] - np.arange(m)])
+    tree = build_tree(data, LIST_LEAF_SIZE)
+    sdata = np.ascontiguousarray(data[tree[0]])
+    sids = np.ascontiguousarray(members[tree[0]])
+    del data
+    is_member = np.zeros(int(max(members.max(), needed.max())) + 2, dtype=np.bool_)
+    is_member[members] = True
+    k = int(min(n_list, members.size))
     lists = np.full((needed.size, n_list), -1, dtype=np.int32)
-    rk2 = np.empty(needed.size)
-    for sl in chunk_slices(needed.size, 3 * kq):
-        d, pos = tree.query(s[needed[sl, None] - first], k=kq, workers=workers)
-        d, pos = d.reshape(-1, kq), pos.reshape(-1, kq)
-        rk2[sl] = d[:, -1] ** 2 if kq < members.size else np.inf
-        times = members[pos]
-        if theiler is None:
-            lists[sl, :min(kq, n_list)] = times[:, :n_list]
-            continue
-        keep = np.abs(times - needed[sl, None]) > theiler
-        order = np.argsort(~keep, axis=1, kind="stable")[:, :n_list]
-        kept = np.take_along_axis(keep, order, 1)
-        lists[sl, :order.shape[1]] = np.where(kept, np.take_along_axis(times, order, 1), -1)
+    rk2 = np.full(needed.size, np.inf)
+    out = lists if k == n_list else np.full((needed.size, k), -1, dtype=np.int32)
+    n_threads = max(1, min(int(workers), numba.config.NUMBA_NUM_THREADS))
+    before = numba.get_num_threads()
+    numba.set_num_threads(n_threads)
+    try:
+        n_chunks = max(1, min(needed.size // 64, 16 * n_threads))
+        window_knn_lists(np.ascontiguousarray(s, dtype=np.float64), int(m), is_member, tree,
+                         sdata, sids, needed, k, -1 if theiler is None else int(theiler),
+                         n_chunks, out, rk2)
+    finally:
+        numba.set_num_threads(before)
+    if k < n_list:
+        lists[:, :k] = out
+        rk2[:] = np.inf
     return lists, rk2
 
 
