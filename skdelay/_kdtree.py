@@ -15,7 +15,7 @@ from numba import njit, prange
 LEAF_SIZE = 12
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def build_tree(data, leaf_size=LEAF_SIZE):
     """Return ``(perm, start, stop, left, right, box_lo, box_hi)`` for ``data`` (n, d).
 
@@ -132,7 +132,7 @@ def query_knn(data, tree, q, k, best_d, best_i, stack):
         sp += 2
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _knn_seeded(sdata, sids, tree, q, k, t, theiler, bound, best_d, best_i, stack):
     """k nearest rows of the tree-ordered ``sdata`` to ``q``, skipping ids within ``theiler``.
 
@@ -192,7 +192,7 @@ def _knn_seeded(sdata, sids, tree, q, k, t, theiler, bound, best_d, best_i, stac
     return found
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, nogil=True)
 def window_knn_lists(s, m, is_member, tree, sdata, sids, needed, k, theiler, n_chunks,
                      lists, rk2):
     """``k`` nearest member windows of every needed time, compiled and threaded.

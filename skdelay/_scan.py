@@ -361,7 +361,7 @@ def _slot(table, j):
     return h
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def scan_cells(s, q_t, lists, rk2, row_of, u_min, starts, m, k, radius2, width, is_db,
                ridge, order, fallback, sq, n_exact):
     """Squared one-step errors of a chunk of taus: re-rank the candidates and fit, compiled.
@@ -572,7 +572,7 @@ def _node_pop(nd, nn, size):
     return size
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def sweep_cells(s, q_t, tree, data, db_t, m, starts, k, theiler, ridge, order, fallback,
                 i0, n_q_all, max_visit, sq, n_exact):
     """Exact k-NN and local fits of every tau of ``starts`` for the queries ``q_t``, compiled.
