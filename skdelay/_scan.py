@@ -129,6 +129,9 @@ LIST_BYTES = 1 << 28
 #: Mackey-Glass points, 67 neighbours, one thread: m = 5 lists 29 / 17 / 17 / 19 us per
 #: time at leaf sizes 12 / 64 / 128 / 256; m = 2: 11 / 8 / 8 / 10 us).
 LIST_LEAF_SIZE = 64
+#: Slices of the needed times of one list build, each followed by a progress report
+#: (a list build takes tens of seconds at 10^6 points).
+LIST_SLICES = 8
 #: Arrays larger than this (bytes) are handed to process workers as one memory map
 #: written once, instead of joblib hashing and dumping them again for every task.
 SHARE_BYTES = 1 << 24
@@ -702,7 +705,7 @@ def sweep_cells(s, q_t, tree, data, db_t, m, starts, k, theiler, ridge, order, f
             sq[it, batch] += e * e
 
 
-def candidate_lists(s, m, members, needed, n_list, theiler, workers=1):
+def candidate_lists(s, m, members, needed, n_list, theiler, workers=1, progress=None):
     """``n_list`` nearest first-window neighbours (times, -1 = none) of every needed time.
 
     Neighbours come from ``members`` (times); with ``theiler`` (None: no
@@ -716,7 +719,9 @@ def candidate_lists(s, m, members, needed, n_list, theiler, workers=1):
     One compiled k-d tree search per needed time
     (:func:`skdelay._kdtree.window_knn_lists`), threaded over ``workers``
     threads; consecutive needed times start from the shifted neighbours of
-    their predecessor, which bounds the search at once.
+    their predecessor, which bounds the search at once.  ``progress``: called
+    as ``progress(done, total)`` after each of up to :data:`LIST_SLICES` slices
+    of the needed times (the scan's progress bar).
     """
     members = np.asarray(members, dtype=np.int64)
     needed = np.ascontiguousarray(needed, dtype=np.int64)
@@ -735,10 +740,16 @@ def candidate_lists(s, m, members, needed, n_list, theiler, workers=1):
     before = numba.get_num_threads()
     numba.set_num_threads(n_threads)
     try:
-        n_chunks = max(1, min(needed.size // 64, 16 * n_threads))
-        window_knn_lists(np.ascontiguousarray(s, dtype=np.float64), int(m), is_member, tree,
-                         sdata, sids, needed, k, -1 if theiler is None else int(theiler),
-                         n_chunks, out, rk2)
+        s64 = np.ascontiguousarray(s, dtype=np.float64)
+        n_slices = max(1, min(LIST_SLICES, needed.size // 10_000))
+        cuts = np.linspace(0, needed.size, n_slices + 1).astype(np.int64)
+        for n, (lo, hi) in enumerate(pairwise(cuts)):
+            n_chunks = max(1, min((hi - lo) // 64, 16 * n_threads))
+            window_knn_lists(s64, int(m), is_member, tree, sdata, sids, needed[lo:hi], k,
+                             -1 if theiler is None else int(theiler), n_chunks, out[lo:hi],
+                             rk2[lo:hi])
+            if progress is not None:
+                progress(n + 1, n_slices)
     finally:
         numba.set_num_threads(before)
     if k < n_list:
@@ -1008,7 +1019,12 @@ def scan_series(s, ms, taus, splits, options, *, random_state=None, n_jobs=None,
                                           o, n_b) for lo, hi in qchunks]
             return cell, q_t, [idx] * len(tasks), tasks, ()
         starts = np.array([second_window_start(m, int(t)) for t in taus[idx]])
-        arrays = _shared_candidates(s, m, db_m, q_t, np.unique(starts), opt, w, n_workers)
+        report = None
+        if bar is not None:
+            def report(done, total):
+                bar.set_postfix_str(f"candidate lists m={m}: {done}/{total}")
+        arrays = _shared_candidates(s, m, db_m, q_t, np.unique(starts), opt, w, n_workers,
+                                    progress=report)
         arrays = tuple(shared(a) if isinstance(a, np.ndarray) else a for a in arrays)
         tasks = [delayed(_candidates_task)(
             s, m, np.array([second_window_start(m, int(t)) for t in taus[c]]),
@@ -1113,7 +1129,7 @@ def _refine(err, se, nq, plans, ms, taus, opt, run, parallel):
         run(cells, parallel)
 
 
-def _shared_candidates(s, m, db_t, q_t, starts, opt, theiler, n_workers):
+def _shared_candidates(s, m, db_t, q_t, starts, opt, theiler, n_workers, progress=None):
     """Candidate lists of one ``m`` for queries ``q_t`` and second-window ``starts``."""
     reach_back = int(starts.max())
     members = np.arange(max(m - 1, int(db_t.min()) - reach_back), int(db_t.max()) + 1)
@@ -1122,7 +1138,7 @@ def _shared_candidates(s, m, db_t, q_t, starts, opt, theiler, n_workers):
     row_of = np.full(int(needed[-1]) - u_min + 1, -1, dtype=np.int64)
     row_of[needed - u_min] = np.arange(needed.size)
     lists, rk2 = candidate_lists(s, m, members, needed, opt.candidates_for(needed.size),
-                                 theiler, workers=n_workers)
+                                 theiler, workers=n_workers, progress=progress)
     is_db = np.zeros(s.size, dtype=np.bool_)
     is_db[db_t] = True
     return lists, rk2, row_of, u_min, is_db

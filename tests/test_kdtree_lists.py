@@ -43,3 +43,24 @@ def test_candidate_lists_pad_when_too_few_members():
     lists, rk2 = candidate_lists(s, 2, members, np.array([50, 51]), 40, 2)
     assert np.all(lists[:, 20:] == -1) and np.all(lists[:, :20] >= 10)
     assert np.all(np.isinf(rk2))
+
+
+def test_candidate_lists_report_progress_per_slice_and_stay_exact_at_the_cuts():
+    rng = np.random.default_rng(5)
+    s = np.round(np.sin(np.arange(32000) * 0.05) + 0.2 * rng.normal(size=32000), 2)
+    members = np.arange(10, 31900)
+    needed = np.arange(10, 31900)
+    calls = []
+    lists, _ = candidate_lists(s, 2, members, needed, 12, 4, workers=2,
+                               progress=lambda done, total: calls.append((done, total)))
+    n = calls[-1][1]
+    assert n > 1 and calls == [(i, n) for i in range(1, n + 1)]
+    cuts = np.linspace(0, needed.size, n + 1).astype(int)
+    rows = np.unique(np.r_[cuts[1:-1] - 1, cuts[1:-1], cuts[1:-1] + 1, 0, needed.size - 1])
+    lags = np.arange(2)
+    for r in rows:
+        t = needed[r]
+        got = lists[r].astype(np.int64)
+        d = np.sort(((s[got[:, None] - lags] - s[t - lags]) ** 2).sum(axis=1))
+        np.testing.assert_allclose(d, _brute(s, 2, members, t, 12, 4), rtol=1e-12, atol=1e-14)
+        assert np.all(np.abs(got - t) > 4)
