@@ -334,7 +334,10 @@ def _table(results, gap_before, problem, by_name, cv=None):
         if cv is not None and r.ok and r.effect in cv[1]:
             cv_before, scores = cv
             cv_after = scores.get(r.effect, (np.nan, {}))[0]
-            shrink = (1.0 - max(cv_after, 0.0) / cv_before if cv_before > 0 else np.nan)
+            if cv_before > 0 or not np.isfinite(cv_after):
+                shrink = 1.0 - max(cv_after, 0.0) / cv_before if cv_before > 0 else np.nan
+            else:  # nothing to explain in the held-out half: an effect can only add a gap
+                shrink = 0.0 if cv_after <= 0 else -np.inf
             after = gap_before * (1.0 - shrink)
         text = ""
         if r.ok:
