@@ -76,3 +76,24 @@ def test_short_record_is_not_split():
     assert not rep.info["cross_validated"]
     row = rep.effects.iloc[0]
     assert np.isnan(row.cv_gap_after) and row.shrink == pytest.approx(row.shrink_fit)
+
+
+def test_halves_drift_the_parameter_chosen_on_the_whole_record():
+    from types import SimpleNamespace
+
+    from skdelay.gap._diagnose import pin_choices
+
+    drift = get_effect("parameter_drift")
+    parts = (SimpleNamespace(simulator=MG), SimpleNamespace(simulator=MG))
+    whole = [SimpleNamespace(effect="parameter_drift", ok=True,
+                             params={"parameter": "n", "start": 10.0, "end": 10.3}),
+             SimpleNamespace(effect="lowpass", ok=True, params={"cutoff": 0.1})]
+    free = drift.ranked(parts[0])
+    assert set(free) == {"a", "b", "n"}
+    pin_choices(parts, whole)
+    assert parts[0].pinned == parts[1].pinned == {"parameter_drift": "n"}
+    assert drift.ranked(parts[0]) == ["n"] and drift.ranked(parts[1]) == ["n"]
+    # a failed whole-record fit pins nothing
+    other = (SimpleNamespace(simulator=MG),)
+    pin_choices(other, [SimpleNamespace(effect="parameter_drift", ok=False, params={})])
+    assert other[0].pinned == {} and set(drift.ranked(other[0])) == {"a", "b", "n"}

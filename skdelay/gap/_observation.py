@@ -99,7 +99,7 @@ class Quantization(Effect):
     log_params = ("step",)
     units: ClassVar[dict] = {"step": "x signal std", "phase": "steps"}
     description = "ADC quantisation"
-    signature: ClassVar[tuple] = ("levels", "increments", "histogram")
+    signature: ClassVar[tuple] = ("levels", "increments", "histogram", "pile_ups")
 
     def guess(self, real, sim, sample_dt):
         step, phase = quantization_step(real)
@@ -267,7 +267,7 @@ class Clipping(Effect):
     bounds: ClassVar[dict] = {"low": (-8.0, 1.0), "high": (-1.0, 8.0)}
     units: ClassVar[dict] = {"low": "signal std", "high": "signal std"}
     description = "saturation (clipping)"
-    signature: ClassVar[tuple] = ("histogram",)
+    signature: ClassVar[tuple] = ("histogram", "pile_ups")
 
     def guess(self, real, sim, sample_dt):
         frac_lo, frac_hi = pile_ups(real)

@@ -188,6 +188,10 @@ class GapReport:
             return f"the distribution of one-step increments (real {side})"
         if ind == "levels":
             return f"the number of distinct values (real {side}: another resolution)"
+        if ind == "pile_ups":
+            end = "lowest" if "lowest" in feature else "highest"
+            return (f"the samples held at the {end} value, {fmt_value(r['peak'])} (units of the "
+                    f"data; real {side}: a clipped end)")
         return f"the {feature} between {fmt_value(r['low'])} and {fmt_value(r['high'])} {r['unit']}"
 
     def headline(self):

@@ -303,6 +303,11 @@ class ParameterDrift(Effect):
         deviation from the simulator (cosine of z-vectors) ranks first.
         """
         keys = self.candidates(problem.simulator)
+        # a half of the record in cross-validation: the parameter chosen on the whole record
+        # (skdelay.gap._diagnose.pin_choices); the half fits and scores its ramp only
+        pinned = getattr(problem, "pinned", {}).get(self.name)
+        if pinned in keys:
+            return [pinned]
         if len(keys) <= self.max_scanned:
             return keys
         names = [k for k, ind in problem.indicators.items()

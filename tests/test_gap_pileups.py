@@ -1,0 +1,86 @@
+"""A clipped end seen as samples piled up at one value; indicators "off" against their null."""
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from skdelay.gap import diagnose_gap, get_effect
+from skdelay.gap._diagnose import off_indicators
+from skdelay.gap._indicators import PileUps
+from skdelay.gap._signature import zscore
+from skdelay.systems import Ikeda
+
+# seeds of these tests (never those of benchmarks/gap_withheld.py, which start at 9e6)
+SEED = 4242
+
+
+def test_pile_up_feature_counts_ties_at_each_end():
+    x = np.sin(np.linspace(0, 200, 5000)) + 0.01 * np.random.default_rng(SEED).standard_normal(5000)
+    ind = PileUps()
+    ind.setup(x, [x], 1.0, None)
+    clean = ind.compute(x)
+    assert clean == pytest.approx(np.sqrt([1 / 5000, 1 / 5000]))
+    y = get_effect("clipping").apply(x, {"low": -np.inf, "high": 1.0})
+    held = np.count_nonzero(zscore(x) >= 1.0)
+    assert held > 100  # a sine spends a fair share of its time above 1 std
+    assert ind.compute(y) == pytest.approx(np.sqrt([1 / 5000, held / 5000]))
+    lo, hi = ind.bounds()
+    assert lo[0] == hi[0] == x.min() and lo[1] == hi[1] == x.max()
+
+
+def _problem(null, gap, z):
+    ev = SimpleNamespace(gaps={"segment": gap}, z={"segment": np.asarray(z, dtype=float)})
+    return SimpleNamespace(null_by_indicator={"segment": null}), ev
+
+
+def test_off_indicator_must_exceed_every_clean_runs_own_gap():
+    # median 0, but one clean run reached 5.0 against the others: 2.0 is within the null
+    prob, ev = _problem([0.0, 0.0, 5.0, 0.0, 0.1, 0.0], 2.0, [2.0, -1.0])
+    assert off_indicators(prob, ev) == {}
+    prob, ev = _problem([0.0, 0.0, 5.0, 0.0, 0.1, 0.0], 5.5, [3.0, -1.0])
+    assert set(off_indicators(prob, ev)) == {"segment"}
+    # a quiet null keeps the old rule: IND_MIN_GAP + 3 x median
+    prob, ev = _problem([0.0, 0.2, 0.3, 0.1, 0.2, 0.0], 1.8, [2.0, -1.0])
+    assert set(off_indicators(prob, ev)) == {"segment"}
+    # one bin far off is off whatever the gap
+    prob, ev = _problem([0.0, 0.0, 5.0, 0.0, 0.1, 0.0], 0.5, [9.0, 0.0])
+    assert set(off_indicators(prob, ev)) == {"segment"}
+
+
+def test_clipped_ikeda_record_is_found_with_its_level():
+    """Ikeda at step 0.5 is nearly white; 1 % clipped at the low end moved its histogram
+    little (the gap was near the no-gap threshold), the tied samples stand out."""
+    ik = Ikeda()
+    x = ik.simulate(6000, sample_dt=0.5, random_state=SEED)
+    z = (x - x.mean()) / x.std()
+    low = float(np.quantile(z, 0.01))
+    real = get_effect("clipping").apply(x, {"low": low, "high": np.inf})
+    rep = diagnose_gap(real, ik, sample_dt=0.5, random_state=SEED + 1,
+                       effects=["clipping", "measurement_noise", "outliers", "lowpass"])
+    assert rep.best_effect == "clipping"
+    fit = rep.effects.set_index("effect").loc["clipping", "params"]
+    assert fit["low"] == pytest.approx(low, abs=0.1) and not np.isfinite(fit["high"])
+    assert rep.shrink > 0.7
+    top = rep.where.iloc[0]
+    assert top["indicator"] == "pile_ups" and top["peak"] == pytest.approx(real.min())
+
+
+def test_clipped_end_survives_noise_into_the_second_round():
+    """Noise removes most of the gap first; the tied samples at the clipped end stay off
+    and lead the second round to the clipping (a localised discrepancy is not masked)."""
+    from skdelay.systems import MackeyGlass
+
+    mg = MackeyGlass()
+    x = mg.simulate(6000, random_state=SEED + 2)
+    z = (x - x.mean()) / x.std()
+    high = float(np.quantile(z, 0.99))
+    y = get_effect("measurement_noise").apply(x, {"noise": 0.05}, random_state=SEED + 3)
+    y = get_effect("clipping").apply(y, {"low": -np.inf, "high": high})
+    rep = diagnose_gap(y, mg, random_state=SEED + 4,
+                       effects=["measurement_noise", "dynamical_noise", "clipping", "lowpass"])
+    assert rep.combined is not None
+    assert set(rep.combined["effects"]) == {"measurement_noise", "clipping"}
+    params = dict(zip(rep.combined["effects"], rep.combined["params"]))
+    assert params["clipping"]["high"] == pytest.approx(high, abs=0.15)
+    assert params["measurement_noise"]["noise"] == pytest.approx(0.05, rel=0.2)
