@@ -16,6 +16,33 @@ LEAF_SIZE = 12
 
 
 @njit(cache=True, nogil=True)
+def _select(data, perm, lo, hi, mid, dim):
+    """Reorder ``perm[lo:hi]`` so that ``perm[mid]`` holds the row of the ``mid``-th smallest
+    ``data[:, dim]`` with no larger value before it and no smaller one after it
+    (quickselect, Hoare partition: linear time, where a sort per node made the build
+    ``O(n log^2 n)``)."""
+    left, right = lo, hi - 1
+    while left < right:
+        pivot = data[perm[(left + right) // 2], dim]
+        i, j = left, right
+        while i <= j:
+            while data[perm[i], dim] < pivot:
+                i += 1
+            while data[perm[j], dim] > pivot:
+                j -= 1
+            if i <= j:
+                perm[i], perm[j] = perm[j], perm[i]
+                i += 1
+                j -= 1
+        if mid <= j:
+            right = j
+        elif mid >= i:
+            left = i
+        else:
+            break
+
+
+@njit(cache=True, nogil=True)
 def build_tree(data, leaf_size=LEAF_SIZE):
     """Return ``(perm, start, stop, left, right, box_lo, box_hi)`` for ``data`` (n, d).
 
@@ -59,10 +86,8 @@ def build_tree(data, leaf_size=LEAF_SIZE):
                 dim = j
         if widest <= 0.0:
             continue  # all points identical: keep as a (large) leaf
-        idx = perm[lo:hi].copy()
-        order = np.argsort(data[idx, dim])
-        perm[lo:hi] = idx[order]
         mid = (lo + hi) // 2
+        _select(data, perm, lo, hi, mid, dim)
         for child, a, b in ((n_nodes, lo, mid), (n_nodes + 1, mid, hi)):
             start[child], stop[child] = a, b
             stack[sp] = child

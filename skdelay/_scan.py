@@ -4,11 +4,11 @@ A row ``t`` of the scan's database is the two-window vector ``v_t(m, tau)``
 (read off the 1-D series on the fly) with target ``s[t+1]``; nothing of size
 ``(n_rows, n_lags)`` is ever built.  Every local fit is
 :func:`skdelay._neighbours.fit_neighbourhood`, called from the compiled kernel
-:func:`scan_cells`.
+:func:`scan_cells` and :func:`tree_cells`.
 
 Neighbour search (``ScanOptions.search``):
 
-* ``"candidates"`` (default) -- the second window of row ``t`` is the first
+* ``"candidates"`` -- the second window of row ``t`` is the first
   window of row ``t - c`` (``c = second_window_start(m, tau)``), so one k-d
   tree per ``m`` on the m-dimensional windows serves every ``tau``: each
   needed time gets its ``K`` nearest windows once (:func:`candidate_lists`,
@@ -29,14 +29,23 @@ Neighbour search (``ScanOptions.search``):
   < 10^-4 under that jitter): misses, not ties.  The true 2m-dimensional
   neighbours at large tau lie at first-window rank ~10^3 (median over
   queries), far beyond any affordable list.
-* ``"sweep"`` -- the exact k-NN (k-NN only; radius neighbourhoods use
-  ``"candidates"``): one best-first search per query of a k-d tree on the
-  first windows serves every tau of a task at once (:func:`sweep_cells`); a
-  tau is final when the next node's first-window box distance reaches its
-  ``k``-th 2m-dimensional distance.  Its cost is the number of points nearer
-  in the first window than the k-th joint neighbour, which grows like
-  ``sqrt(k N)``: measured (one core, m = 5, all taus of the grid) 23 us per
-  query and cell at 10^5 points (tau 1..200) and 83 us at 10^6 (tau 1..500).
+* ``"tree"`` -- the exact k-NN (k-NN only): for every tau a k-d tree on the
+  leading principal components of both windows (:func:`window_components`,
+  :data:`TREE_COMPONENTS` per window), searched depth-first from the previous
+  query's neighbours one sample on; the projected distance bounds the
+  2m-dimensional one from below, so a box or point is pruned only when it
+  cannot be nearer than the current ``k``-th neighbour, and the full distance
+  is computed for the few points left (:func:`tree_cells`).  Smooth windows
+  are nearly flat in the first few components (two hold 99.98 % of the
+  variance of noisy Mackey-Glass windows), so the 4-dimensional tree prunes
+  almost as well as a 2m-dimensional one at a fraction of its cost; rough
+  windows only make it slower, never inexact.  Its cost is one tree build per
+  tau (~ n log n) plus a few microseconds per query.
+* ``"auto"`` (default) -- ``"tree"`` for the cells whose database has at most
+  :data:`TREE_RATIO` rows per query (every query of a full-precision scan and
+  of refined cells), ``"candidates"`` for the others (a coarse pass with few
+  queries on a long record, where one tree per tau would cost more than the
+  queries) and for radius neighbourhoods.
 * ``"exact"`` -- a plain k-d tree on the 2m-dimensional vectors, rebuilt for
   every ``(m, tau)`` (the reference).
 
@@ -51,8 +60,7 @@ then the taus around each dip are recomputed with :data:`REFINE_GROWTH` times
 more queries (nested sets, up to all rows) until the dip centre's standard
 error (:func:`skdelay._dips.locate_dips`) is below ``target_centre_se``.
 
-Tasks are ``(m, chunk of taus)`` (``"sweep"``: ``(m, chunk of queries)``, every
-tau in one search), dispatched through joblib, so any
+Tasks are ``(m, chunk of taus)``, dispatched through joblib, so any
 ``n_jobs`` is kept busy and ``joblib.parallel_config(backend="dask")`` runs
 the scan unchanged.
 """
@@ -98,7 +106,8 @@ __all__ = [
     "neighbourhood_mode",
     "scan_cells",
     "scan_series",
-    "sweep_cells",
+    "tree_cells",
+    "window_components",
 ]
 
 #: Contiguous query batches per cell for the standard error.  32 batch means give the
@@ -135,13 +144,21 @@ LIST_SLICES = 8
 #: Arrays larger than this (bytes) are handed to process workers as one memory map
 #: written once, instead of joblib hashing and dumping them again for every task.
 SHARE_BYTES = 1 << 24
-#: Points one query of the sweep search evaluates at most (then a tau counts as exact
-#: only where the unvisited boxes prove it).  Measured on 10^5 noisy 12-bit
-#: Mackey-Glass points (delay 100, k = 30, 300 queries, m = 2 and 5, tau = 20..200):
-#: the points nearer in the first window than the exact k-th 2m-dimensional neighbour
-#: of one tau numbered 1000-2500 (median), 2000-4000 (90th percentile), 9744 at most;
-#: the cap sits well above that and only stops pathological queries.
-MAX_VISIT = 1 << 16
+#: Principal components per window in the projected k-d tree of the tree search (a tree
+#: on 2 x 2 dimensions).  Measured on 2*10^4 noisy 12-bit Mackey-Glass points (delay 100,
+#: m = 5, k = 30, tau = 80..120): two components hold 99.98 % of the window variance, and a
+#: query computes the full 2m-dimensional distance of 16 points (k-NN from its
+#: predecessor's neighbours included), after 60 tree nodes and 171 projected distances.
+#: More components tighten the bound but slow the tree; the result is exact either way.
+TREE_COMPONENTS = 2
+#: Leaf size of the per-tau trees (16 and 32 points per leaf: the same work within 10 %
+#: on the case above, 8: 20 % more).
+TREE_LEAF_SIZE = 16
+#: ``search="auto"`` uses the exact tree search for a cell when its database has at most
+#: this many times as many rows as the cell has queries (a tree per tau costs about as
+#: much as ten queries per database row; beyond that the candidate lists, built once per
+#: m, are cheaper: the coarse pass of a 10^6-point paper-scale scan).
+TREE_RATIO = 10
 
 _MODES = {"none": "none", "segment": "segment", "radius": "radius"}
 
@@ -208,9 +225,9 @@ class ScanOptions:
         Radius neighbourhoods (in the units of the scanned series) with k-NN fallback.
     theiler : int, default=0
         Temporal exclusion of the in-sample error (out-of-sample splits ignore it).
-    search : {"candidates", "sweep", "exact"}, default="candidates"
+    search : {"auto", "tree", "candidates", "exact"}, default="auto"
         Neighbour search (see the module notes; radius neighbourhoods use
-        ``"candidates"`` in place of ``"sweep"``).
+        ``"candidates"`` under ``"auto"``).
     n_candidates : int, default=None
         Candidates per window for ``"candidates"``; None: :func:`default_n_candidates`
         of the number of needed times (see :meth:`candidates_for`).
@@ -239,7 +256,7 @@ class ScanOptions:
     ridge: float = 1e-3
     radius: float | None = None
     theiler: int = 0
-    search: str = "candidates"
+    search: str = "auto"
     n_candidates: int | None = None
     neighbourhood: str = "none"
     n_queries: int | None = None
@@ -259,8 +276,8 @@ class ScanOptions:
             raise ValueError(f"radius must be None (k-NN) or a finite number > 0 in the units "
                              f"of the series, got {self.radius!r}.")
         theiler = check_positive_int(self.theiler, name="theiler_window", minimum=0)
-        if self.search not in ("sweep", "candidates", "exact"):
-            raise ValueError(f"search must be 'sweep', 'candidates' or 'exact', got "
+        if self.search not in ("auto", "tree", "candidates", "exact"):
+            raise ValueError(f"search must be 'auto', 'tree', 'candidates' or 'exact', got "
                              f"{self.search!r}.")
         if self.n_candidates is None:
             n_cand = None
@@ -575,134 +592,212 @@ def _node_pop(nd, nn, size):
     return size
 
 
+@njit(cache=True, inline="always")
+def _node_dist2(q, box_lo, box_hi, node):
+    """Squared distance of ``q`` to the box of ``node`` (rows of ``box_lo``/``box_hi``)."""
+    acc = 0.0
+    for f in range(q.size):
+        lo = box_lo[node, f]
+        if q[f] < lo:
+            acc += (lo - q[f]) * (lo - q[f])
+        else:
+            hi = box_hi[node, f]
+            if q[f] > hi:
+                acc += (q[f] - hi) * (q[f] - hi)
+    return acc
+
+
+@njit(cache=True, inline="always")
+def _sift_down(hd, hj, pos):
+    """Restore the max-heap ``(hd, hj)`` below ``pos``."""
+    k = hd.size
+    while True:
+        child = 2 * pos + 1
+        if child >= k:
+            break
+        if child + 1 < k and hd[child + 1] > hd[child]:
+            child += 1
+        if hd[child] <= hd[pos]:
+            break
+        hd[pos], hd[child] = hd[child], hd[pos]
+        hj[pos], hj[child] = hj[child], hj[pos]
+        pos = child
+
+
 @njit(cache=True, nogil=True)
-def sweep_cells(s, q_t, tree, data, db_t, m, starts, k, theiler, ridge, order, fallback,
-                i0, n_q_all, max_visit, sq, n_exact):
+def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, leaf, sq):
     """Exact k-NN and local fits of every tau of ``starts`` for the queries ``q_t``, compiled.
 
-    ``tree`` (:func:`skdelay._kdtree.build_tree`) indexes ``data``, the first
-    windows ``s[db_t - lag]`` (lag ``0..m-1``) of the database times ``db_t``.
-    One best-first search per query (nodes in order of their first-window box
-    distance) serves every tau at once: a visited point ``j`` with
-    first-window distance ``d1`` is offered to each tau whose current ``k``-th
-    distance exceeds ``d1``, with its exact 2m-dimensional distance ``d1 + d2``
-    (``d2``: second windows ``s[q - c - lag]`` against ``s[j - c - lag]``), and
-    each tau keeps its ``k`` nearest in a max-heap.  A tau is final once the
-    next node's box distance reaches its ``k``-th distance (every point left is
-    at least that far in 2m dimensions), so its neighbourhood is the exact
-    k-NN (up to the order of equal distances); the search ends when every tau
-    is final.  After ``max_visit`` evaluated points it stops early and a tau
-    counts as exact (``n_exact``) only where that bound already held.
-    ``theiler < 0``: no temporal exclusion.
+    For each tau (second-window start ``c``) a k-d tree is built on the
+    projected vectors ``(U[j], U[j - c])`` of the database times ``db_t``,
+    where ``U[t]`` holds the leading principal components of the window
+    ``s[t - lag]`` (``lag = 0..m-1``; orthonormal directions, so the projected
+    squared distance never exceeds the 2m-dimensional one).  A depth-first
+    search prunes a box when its projected distance reaches the current
+    ``k``-th 2m-dimensional distance, and a point when its projected distance
+    does; the others get their exact distance.  When the search ends no
+    unvisited point can be nearer than the ``k``-th neighbour, so the
+    neighbourhood is the exact k-NN (up to the order of equal distances).  The
+    search starts from the previous query's neighbours one sample on (a
+    neighbour of ``q - 1`` stays near ``q`` after one step), which bounds it at
+    once.  Database times within ``theiler`` samples of the query are skipped
+    (``theiler < 0``: none).
 
-    Adds the squared errors to ``sq[tau_index, batch]`` (query ``i`` of the
-    cell's ``n_q_all`` is ``i0 + i``; batch ``(i0 + i) * n_batches // n_q_all``).
+    Adds the squared errors to ``sq[tau_index, batch]`` (batch ``i * n_batches
+    // n_queries`` of query ``i``).
     """
-    perm, start, stop, left, right, box_lo, box_hi = tree
+    n_db = db_t.size
+    p = U.shape[1]
+    pp2 = 2 * p
     n_tau = starts.size
     n_batches = sq.shape[1]
-    p = 2 * m
-    hd = np.empty((n_tau, k))
-    hj = np.empty((n_tau, k), dtype=np.int64)
-    active = np.empty(n_tau, dtype=np.int64)
-    nd = np.empty(left.size + 1)
-    nn = np.empty(left.size + 1, dtype=np.int64)
-    vq1 = np.empty(m)
-    Vn = np.empty((k, p))
+    n_q = q_t.size
+    t_hi = db_t[n_db - 1]
+    data = np.empty((n_db, pp2))
+    sdata = np.empty((n_db, pp2))
+    sids = np.empty(n_db, dtype=np.int64)
+    in_heap = np.zeros(t_hi + 2, dtype=np.bool_)
+    is_db = np.zeros(t_hi + 2, dtype=np.bool_)
+    for r in range(n_db):
+        is_db[db_t[r]] = True
+    qp = np.empty(pp2)
+    hd = np.empty(k)
+    hj = np.empty(k, dtype=np.int64)
+    stack = np.empty(256, dtype=np.int64)
+    stack_d = np.empty(256)
+    width = 2 * m
+    Vn = np.empty((k, width))
     yn = np.empty(k)
     w = np.empty(k)
-    vq = np.empty(p)
-    mu = np.empty(p)
-    G = np.empty((p, p))
-    rhs = np.empty(p)
-    a = np.empty(p)
-    for i in range(q_t.size):
-        q = q_t[i]
-        batch = ((i0 + i) * n_batches) // n_q_all
-        for lag in range(m):
-            vq1[lag] = s[q - lag]
-        hd[:, :] = np.inf
-        hj[:, :] = -1
-        for it in range(n_tau):
-            active[it] = it
-        n_act = n_tau
-        bound = np.inf
-        visited = 0
-        size = _node_push(nd, nn, 0, _box_dist2(vq1, box_lo[0], box_hi[0]), 0)
-        while size > 0 and n_act > 0 and visited < max_visit:
-            bd = nd[0]
-            node = nn[0]
-            if bd >= bound:
-                break
-            size = _node_pop(nd, nn, size)
-            # taus whose k-th distance is within this box distance are final
-            kept = 0
-            for x in range(n_act):
-                it = active[x]
-                if hd[it, 0] > bd:
-                    active[kept] = it
-                    kept += 1
-            n_act = kept
-            if left[node] >= 0:
-                for child in (left[node], right[node]):
-                    dc = _box_dist2(vq1, box_lo[child], box_hi[child])
-                    if dc < bound:
-                        size = _node_push(nd, nn, size, dc, child)
-                continue
-            for pp in range(start[node], stop[node]):
-                row = perm[pp]
-                j = db_t[row]
-                if theiler >= 0 and abs(j - q) <= theiler:
-                    continue
-                d1 = 0.0
-                for lag in range(m):
-                    t = data[row, lag] - vq1[lag]
-                    d1 += t * t
-                if d1 >= bound:
-                    continue
-                visited += 1
-                changed = False
-                for x in range(n_act):
-                    it = active[x]
-                    if hd[it, 0] <= d1:
-                        continue
-                    c0 = starts[it]
-                    d = d1
-                    for lag in range(m):
-                        t = s[q - c0 - lag] - s[j - c0 - lag]
-                        d += t * t
-                    if d < hd[it, 0]:
-                        _heap_replace(hd[it], hj[it], d, j)
-                        changed = True
-                if changed:
-                    bound = 0.0
-                    for x in range(n_act):
-                        bound = max(bound, hd[active[x], 0])
-        # stopped at max_visit: the nearest unvisited box bounds the points left
-        lb = nd[0] if size > 0 and n_act > 0 and visited >= max_visit else np.inf
-        for it in range(n_tau):
-            c0 = starts[it]
-            if hd[it, 0] <= lb:
-                n_exact[it] += 1
+    vq = np.empty(width)
+    mu = np.empty(width)
+    G = np.empty((width, width))
+    rhs = np.empty(width)
+    a = np.empty(width)
+    for it in range(n_tau):
+        c = starts[it]
+        for r in range(n_db):
+            j = db_t[r]
+            for f in range(p):
+                data[r, f] = U[j, f]
+                data[r, p + f] = U[j - c, f]
+        perm, start, stop, left, right, box_lo, box_hi = build_tree(data, leaf)
+        for r in range(n_db):
+            sids[r] = db_t[perm[r]]
+            for f in range(pp2):
+                sdata[r, f] = data[perm[r], f]
+        for x in range(k):
+            hj[x] = -1
+        prev_q = np.int64(-2)
+        for i in range(n_q):
+            q = q_t[i]
+            for f in range(p):
+                qp[f] = U[q, f]
+                qp[p + f] = U[q - c, f]
             for lag in range(m):
-                vq[lag] = vq1[lag]
-                vq[m + lag] = s[q - c0 - lag]
-            for c in range(k):
-                j = hj[it, c]
-                if j < 0:
-                    w[c] = 0.0
-                    yn[c] = 0.0
-                    for f in range(p):
-                        Vn[c, f] = 0.0
+                vq[lag] = s[q - lag]
+                vq[m + lag] = s[q - c - lag]
+            follows = q == prev_q + 1
+            prev_q = q
+            for x in range(k):  # seeds: the last query's neighbours one sample on
+                j = hj[x]
+                if j >= 0:
+                    in_heap[j] = False
+                    j += 1
+                if follows and j > 0 and j <= t_hi and is_db[j] and not in_heap[j] \
+                        and (theiler < 0 or abs(j - q) > theiler):
+                    acc = 0.0
+                    for lag in range(m):
+                        d1 = vq[lag] - s[j - lag]
+                        d2 = vq[m + lag] - s[j - c - lag]
+                        acc += d1 * d1 + d2 * d2
+                    hd[x] = acc
+                    hj[x] = j
+                    in_heap[j] = True
+                else:
+                    hd[x] = np.inf
+                    hj[x] = -1
+            for x in range(k // 2 - 1, -1, -1):
+                _sift_down(hd, hj, x)
+            stack[0] = 0
+            stack_d[0] = 0.0
+            sp = 1
+            while sp > 0:  # depth first, nearer child first; boxes keep their distance
+                sp -= 1
+                if stack_d[sp] >= hd[0]:
                     continue
-                w[c] = 1.0
-                yn[c] = s[j + 1]
+                node = stack[sp]
+                if left[node] >= 0:
+                    lc, rc = left[node], right[node]
+                    dl = _node_dist2(qp, box_lo, box_hi, lc)
+                    dr = _node_dist2(qp, box_lo, box_hi, rc)
+                    if dl > dr:
+                        lc, rc, dl, dr = rc, lc, dr, dl
+                    if dr < hd[0]:
+                        stack[sp] = rc
+                        stack_d[sp] = dr
+                        sp += 1
+                    if dl < hd[0]:
+                        stack[sp] = lc
+                        stack_d[sp] = dl
+                        sp += 1
+                    continue
+                for r in range(start[node], stop[node]):
+                    pd = 0.0
+                    for f in range(pp2):
+                        d1 = sdata[r, f] - qp[f]
+                        pd += d1 * d1
+                    if pd >= hd[0]:
+                        continue
+                    j = sids[r]
+                    if in_heap[j] or (theiler >= 0 and abs(j - q) <= theiler):
+                        continue
+                    acc = 0.0
+                    for lag in range(m):
+                        d1 = vq[lag] - s[j - lag]
+                        d2 = vq[m + lag] - s[j - c - lag]
+                        acc += d1 * d1 + d2 * d2
+                    if acc < hd[0]:
+                        if hj[0] >= 0:
+                            in_heap[hj[0]] = False
+                        in_heap[j] = True
+                        _heap_replace(hd, hj, acc, j)
+            for x in range(k):
+                j = hj[x]
+                if j < 0:
+                    w[x] = 0.0
+                    yn[x] = 0.0
+                    for f in range(width):
+                        Vn[x, f] = 0.0
+                    continue
+                w[x] = 1.0
+                yn[x] = s[j + 1]
                 for lag in range(m):
-                    Vn[c, lag] = s[j - lag]
-                    Vn[c, m + lag] = s[j - c0 - lag]
+                    Vn[x, lag] = s[j - lag]
+                    Vn[x, m + lag] = s[j - c - lag]
             _, pred = fit_neighbourhood(Vn, yn, w, vq, ridge, order, fallback, mu, G, rhs, a)
             e = pred - s[q + 1]
-            sq[it, batch] += e * e
+            sq[it, (i * n_batches) // n_q] += e * e
+        for x in range(k):
+            if hj[x] >= 0:
+                in_heap[hj[x]] = False
+
+
+def window_components(s, m, times, n_components):
+    """Leading principal components of the windows ``s[t - lag]`` (``lag = 0..m-1``).
+
+    The directions come from the windows of ``times``; returns ``U`` (``(s.size,
+    n_components)``, rows before ``m - 1`` are zero) with ``U[t]`` the window of
+    ``t`` projected on them.  Orthonormal directions: a projected distance is a
+    lower bound of the window distance.
+    """
+    W = s[np.asarray(times)[:, None] - np.arange(m)]
+    _, vecs = np.linalg.eigh(np.cov(W, rowvar=False).reshape(m, m))
+    P = np.ascontiguousarray(vecs[:, ::-1][:, :n_components])
+    U = np.zeros((s.size, n_components))
+    for lag in range(m):
+        U[m - 1:] += s[m - 1 - lag: s.size - lag, None] * P[lag]
+    return U
 
 
 def candidate_lists(s, m, members, needed, n_list, theiler, workers=1, progress=None):
@@ -783,24 +878,14 @@ def _exact_task(s, m, taus, db_t, q_t, opt, n_batches):
     return sq, np.full(len(taus), q_t.size)
 
 
-def _sweep_task(s, m, starts, q_t, i0, n_q_all, shared, opt, n_batches):
-    """One chunk of queries of one ``m``: every tau of ``starts`` (exact k-NN)."""
-    perm, start, stop, left, right, box_lo, box_hi, data, db_t = (
-        np.asarray(a) for a in shared)
-    tree = (perm, start, stop, left, right, box_lo, box_hi)
+def _tree_task(s, U, m, starts, db_t, q_t, opt, n_batches):
+    """One chunk of taus of one ``m``: exact k-NN by the projected k-d tree of each tau."""
     k = min(opt["k"], db_t.size)
     sq = np.zeros((starts.size, n_batches))
-    n_exact = np.zeros(starts.size, dtype=np.int64)
     theiler = -1 if opt["theiler"] is None else int(opt["theiler"])
-    sweep_cells(s, q_t, tree, data, db_t, m, starts, k, theiler, opt["ridge"], opt["order"],
-                float(s[db_t + 1].mean()), i0, n_q_all, MAX_VISIT, sq, n_exact)
-    return sq, n_exact
-
-
-def _sweep_tree(s, m, db_t):
-    """First-window k-d tree of the database times: ``(*tree, data, db_t)``."""
-    data = np.ascontiguousarray(s[db_t[:, None] - np.arange(m)])
-    return (*build_tree(data), data, np.ascontiguousarray(db_t, dtype=np.int64))
+    tree_cells(s, np.asarray(U), q_t, db_t, m, starts, k, theiler, opt["ridge"],
+               opt["order"], float(s[db_t + 1].mean()), TREE_LEAF_SIZE, sq)
+    return sq, np.full(starts.size, q_t.size)
 
 
 def _candidates_task(s, m, starts, db_t, q_t, shared, opt, n_batches):
@@ -985,7 +1070,7 @@ def scan_series(s, ms, taus, splits, options, *, random_state=None, n_jobs=None,
 
     job_opt = {"k": opt.k, "order": opt.order, "ridge": opt.ridge, "theiler": None}
     shared = _Shared(n_workers > 1)
-    trees = {}  # (split, m) -> shared first-window tree of the sweep search
+    components = {}  # (split, m) -> window components of the tree search
     bar = None
     if progress:
         from tqdm.auto import tqdm
@@ -1005,19 +1090,17 @@ def scan_series(s, ms, taus, splits, options, *, random_state=None, n_jobs=None,
         if opt.search == "exact":
             tasks = [delayed(_exact_task)(s, m, taus[c], db_m, q_t, o, n_b) for c in chunks]
             return cell, q_t, chunks, tasks, ()
-        if opt.search == "sweep" and rad is None:
-            starts = np.array([second_window_start(m, int(t)) for t in taus[idx]],
-                              dtype=np.int64)
+        if opt.search == "tree" or (opt.search == "auto" and rad is None
+                                    and db_m.size <= TREE_RATIO * q_t.size):
             key = (split, m)
-            if key not in trees:
-                trees[key] = tuple(shared(a) for a in _sweep_tree(s, m, db_m))
-            arrays = trees[key]
-            n_chunks = max(1, min(q_t.size, TASKS_PER_WORKER * n_workers))
-            bounds = np.linspace(0, q_t.size, n_chunks + 1).astype(np.int64)
-            qchunks = [(lo, hi) for lo, hi in pairwise(bounds) if hi > lo]
-            tasks = [delayed(_sweep_task)(s, m, starts, q_t[lo:hi], int(lo), q_t.size, arrays,
-                                          o, n_b) for lo, hi in qchunks]
-            return cell, q_t, [idx] * len(tasks), tasks, ()
+            if key not in components:
+                components[key] = shared(window_components(
+                    s, m, db_m, min(m, TREE_COMPONENTS)))
+            tasks = [delayed(_tree_task)(
+                s, components[key], m,
+                np.array([second_window_start(m, int(t)) for t in taus[c]], dtype=np.int64),
+                db_m, q_t, o, n_b) for c in chunks]
+            return cell, q_t, chunks, tasks, ()
         starts = np.array([second_window_start(m, int(t)) for t in taus[idx]])
         report = None
         if bar is not None:

@@ -109,7 +109,7 @@ def _combine(res):
 # ----------------------------------------------------------------------------- forecast_error_curve
 def forecast_error_curve(series, m=(2, 3, 4, 5), tau=range(1, 101), *, n_neighbors=30, order=1,
                          ridge=1e-3, radius=None, n_queries=None, equal_neighbourhood=False,
-                         theiler_window="auto", search="candidates", n_candidates=None,
+                         theiler_window="auto", search="auto", n_candidates=None,
                          refine=True, progress=False, random_state=None, n_jobs=None, verbose=0):
     """Normalised one-step forecast error sigma_m(tau) of local linear two-window models.
 
@@ -147,14 +147,16 @@ def forecast_error_curve(series, m=(2, 3, 4, 5), tau=range(1, 101), *, n_neighbo
         ``"radius"`` uses that distance as a common neighbourhood radius.
     theiler_window : int or "auto", default="auto"
         Temporal exclusion of neighbours; "auto" is the 1/e decorrelation time.
-    search : {"candidates", "sweep", "exact"}, default="candidates"
-        Neighbour search (see :mod:`skdelay._scan`): "candidates" re-ranks
-        fixed candidate lists (fast, approximate: it can miss true neighbours,
-        ``attrs["exact_fraction"]`` says how often it is provably exact);
-        "sweep" is the exact k-NN of every tau from one compiled first-window
-        k-d tree search per query (k-NN only; about 2x faster than "exact" at
-        10^5 points, but its cost per query grows with the record); "exact"
-        rebuilds a k-d tree per ``(m, tau)``.
+    search : {"auto", "tree", "candidates", "exact"}, default="auto"
+        Neighbour search (see :mod:`skdelay._scan`): "tree" is the exact
+        k-NN from a k-d tree per tau on the leading principal components of
+        both windows, refined by the full distance; "candidates" re-ranks fixed
+        candidate lists built once per ``m`` (approximate: it can miss true
+        neighbours, ``attrs["exact_fraction"]`` says how often it is provably
+        exact); "auto" uses "tree" wherever a cell has at least one query per
+        ten database rows (every cell of a full-precision scan, refined
+        cells) and "candidates" elsewhere; "exact" rebuilds a plain k-d tree
+        on the 2m-dimensional vectors per ``(m, tau)`` (the reference).
     n_candidates : int, default=None
         Candidates per window and query for ``search="candidates"`` (default
         ``max(8 k, 64)``, fewer for records so long that the lists of one ``m``
@@ -316,7 +318,7 @@ class DelaySelectorCV(RegressorMixin, BaseEstimator):
     equal_neighbourhood : {False, True, "segment", "radius"}, default=False
         Equal neighbourhood size for every ``m`` (see
         :func:`forecast_error_curve`); needs ``X`` from ``lagged_windows``.
-    search : {"candidates", "sweep", "exact"}, default="candidates"
+    search : {"auto", "tree", "candidates", "exact"}, default="auto"
         Neighbour search of the scan (see :func:`forecast_error_curve`).
     n_candidates : int, default=None
         Candidates per window and query for ``search="candidates"``.
@@ -391,7 +393,7 @@ class DelaySelectorCV(RegressorMixin, BaseEstimator):
     """
 
     def __init__(self, estimator=None, *, m=None, tau=None, cv=None, n_queries=None,
-                 theiler_window="auto", equal_neighbourhood=False, search="candidates",
+                 theiler_window="auto", equal_neighbourhood=False, search="auto",
                  n_candidates=None, refine=True, dip_level=1 / 3, progress=False,
                  random_state=None, n_jobs=None, verbose=0):
         self.estimator = estimator

@@ -27,7 +27,7 @@ def mg30():
         ({"order": 2}, r"order must be 0 \(local constant\) or 1 \(local linear\), got 2"),
         ({"k": 10, "n_candidates": 5},
          r"n_candidates=5 is smaller than n_neighbors=10: .* use n_candidates >= 10"),
-        ({"search": "kd"}, r"search must be 'sweep', 'candidates' or 'exact', got 'kd'"),
+        ({"search": "kd"}, r"search must be 'auto', 'tree', 'candidates' or 'exact', got 'kd'"),
         ({"neighbourhood": "x"}, r"equal_neighbourhood must be False"),
         ({"n_queries": 0}, r"n_queries must be >= 1"),
     ],
@@ -222,30 +222,39 @@ def test_progress_bar_and_shared_arrays(mg30, capsys, monkeypatch):
 
 
 # ----------------------------------------------------------------------------- searches
-def test_sweep_search_is_the_exact_knn():
+@pytest.mark.parametrize("every_point", [False, True])
+def test_tree_search_is_the_exact_knn(every_point):
     # unquantised data: no equal distances, so the exact k-NN is unique
     s = measured_mackey_glass(3000, 30, noise=0.01, bits=None, seed=5)
-    kw = {"m": (2, 4), "tau": range(1, 41), "n_queries": 300, "refine": False,
-          "random_state": 0}
-    sweep = forecast_error_curve(s, search="sweep", **kw)
+    kw = {"m": (2, 4), "tau": range(1, 41), "n_queries": None if every_point else 300,
+          "refine": False, "random_state": 0}
+    tree = forecast_error_curve(s, search="tree", **kw)
     exact = forecast_error_curve(s, search="exact", **kw)
-    np.testing.assert_allclose(sweep.to_numpy(), exact.to_numpy(), rtol=1e-9)
-    assert sweep.attrs["exact_fraction"] == {2: 1.0, 4: 1.0}
-    # the candidate lists miss true neighbours here (what sweep is for)
+    np.testing.assert_allclose(tree.to_numpy(), exact.to_numpy(), rtol=1e-9)
+    assert tree.attrs["exact_fraction"] == {2: 1.0, 4: 1.0}
+    # the candidate lists miss true neighbours here (what the tree search is for)
     cand = forecast_error_curve(s, search="candidates", **kw)
     assert np.abs(cand.to_numpy() / exact.to_numpy() - 1).max() > 1e-6
     assert min(cand.attrs["exact_fraction"].values()) < 1
 
 
-def test_sweep_visit_cap_counts_inexact_neighbourhoods(monkeypatch):
-    import skdelay._scan as scan
+def test_tree_search_stays_exact_on_rough_windows():
+    # white noise: the two leading components hold little of a window, so the projected
+    # bound is loose -- slower, but the neighbours (and sigma) must not change
+    s = np.random.default_rng(3).normal(size=1500)
+    kw = {"m": (5,), "tau": range(1, 12), "refine": False, "random_state": 0}
+    tree = forecast_error_curve(s, search="tree", **kw)
+    exact = forecast_error_curve(s, search="exact", **kw)
+    np.testing.assert_allclose(tree.to_numpy(), exact.to_numpy(), rtol=1e-9)
 
-    s = measured_mackey_glass(3000, 30, noise=0.01, bits=None, seed=5)
-    kw = {"m": (3,), "tau": range(25, 36), "n_queries": 200, "refine": False,
-          "random_state": 0, "search": "sweep"}
-    full = forecast_error_curve(s, **kw)
-    monkeypatch.setattr(scan, "MAX_VISIT", 40)  # stop every search after 40 points
-    capped = forecast_error_curve(s, **kw)
-    assert capped.attrs["exact_fraction"][3] < 0.5 < full.attrs["exact_fraction"][3] == 1.0
-    assert np.all(np.isfinite(capped.to_numpy()))
-    assert np.all(capped.to_numpy() >= 0.5 * full.to_numpy())
+
+def test_auto_search_is_exact_at_full_precision_and_uses_lists_for_sparse_queries(mg30):
+    kw = {"m": (3,), "tau": range(25, 36), "refine": False, "random_state": 0}
+    auto = forecast_error_curve(mg30[:3000], **kw)  # every point a query: the tree search
+    assert auto.attrs["exact_fraction"] == {3: 1.0}
+    np.testing.assert_allclose(
+        auto.to_numpy(), forecast_error_curve(mg30[:3000], search="tree", **kw).to_numpy())
+    # 100 queries on ~3000 rows: one tree per tau would cost more than the queries
+    sparse = forecast_error_curve(mg30[:3000], n_queries=100, **kw)
+    lists = forecast_error_curve(mg30[:3000], n_queries=100, search="candidates", **kw)
+    np.testing.assert_array_equal(sparse.to_numpy(), lists.to_numpy())
