@@ -389,8 +389,27 @@ def spectrum_of_selection(series, selection, *, n_exponents=20, n_steps=None, sa
                           flow=False, random_state=0, n_jobs=None):
     """Fit the selected model on the whole series and return its Lyapunov spectrum.
 
-    Exponents per time unit of ``sample_dt`` (the step of the model is
-    ``selection.step`` samples).
+    Parameters
+    ----------
+    series : array-like of shape (n_samples,)
+        The series the selection was made on (sampling step ``sample_dt``).
+    selection : SpectrumModelSelection
+        From :func:`select_spectrum_model`.
+    n_exponents : int, default=20
+        Exponents computed (at most the model's state dimension).
+    n_steps : int, default=None
+        Model steps along the series used (default: all).
+    sample_dt : float, default=1.0
+        Sampling interval of ``series``; exponents are per its time unit (the
+        model's step is ``selection.step * sample_dt``).
+    flow : bool, default=False
+        Pin the exponent nearest zero (see :func:`skdelay.dynamics.lyapunov_spectrum`).
+    random_state : int, default=0
+    n_jobs : int, default=None
+
+    Returns
+    -------
+    LyapunovSpectrum
     """
     from ._lyapunov import lyapunov_spectrum
     from ._model import fit_delay_model
