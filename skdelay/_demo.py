@@ -230,9 +230,11 @@ def cross_prediction_table(results):
     return out
 
 
-#: the demo's model settings, those of ``benchmarks/paper_table.py``: on this noisy data
-#: (0.5 % measurement noise) wide, damped neighbourhoods keep noise from inflating the
-#: exponents (lambda_max and D_KY within 22 % and 7 % of the exact values at all three delays)
+#: the demo's model settings, those of ``benchmarks/paper_table.py``: hand-chosen (not
+#: cross-validated) for the earlier, more chaotic laser regime.  In the demo on the present
+#: embedded data (m = 5, step 1) they give lambda_max 4.45 / 2.36 / 1.28 per ms against
+#: the exact 2.29 / 0.97 / 0.446 (2-3x too large): the 5 us windows do not resolve the
+#: state between the laser's pulses (``benchmarks/out/spectrum_settings.txt``; issue 12)
 DEMO_MODEL = ModelOptions(n_neighbors=100, ridge=3e-2)
 
 

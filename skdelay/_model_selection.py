@@ -35,7 +35,9 @@ from ._local_linear import LocalLinearDelayMap
 from ._model import ModelOptions
 from ._windows import lagged_windows
 
-__all__ = ["PER_PARAMETER_GRID", "RIDGE_GRID", "ModelSelection", "select_model_options"]
+__all__ = ["PER_PARAMETER_GRID", "RIDGE_GRID", "ModelSelection", "SpectrumModelSelection",
+           "dominant_period", "select_model_options", "select_spectrum_model",
+           "spectrum_of_selection"]
 
 #: Neighbours per parameter of the local map (k = value * (2 m + 1)): from barely
 #: overdetermined fits (2) to neighbourhoods spanning a sizeable part of a
@@ -173,3 +175,248 @@ def select_model_options(series, m, tau, *, base=None, per_parameter=PER_PARAMET
     options = replace(base, n_neighbors=None, per_parameter=float(best["per_parameter"]),
                       ridge=float(best["ridge"]))
     return ModelSelection(options=options, table=table, horizon=horizon)
+
+
+# --------------------------------------------------------------------------------------
+# The model behind the reported spectrum: time scale, window span, neighbours and ridge
+# --------------------------------------------------------------------------------------
+
+#: Evolution times (samples per model step) tried for the spectrum model.  A local linear
+#: map of a flow sampled far above its fastest time scale is nearly the identity: its
+#: Jacobian's information sits in high-order differences that are mostly noise.  Larger
+#: steps let the window reach back further with the same number of coordinates.
+STEP_GRID = (1, 2, 3, 4)
+#: Window spans (``m * step``) in units of the dominant period of the series (the lag of
+#: the first autocorrelation maximum after its first minimum).  Evidence (embedded laser,
+#: tau0 = 50 us, 1e5 samples, k = 150, 2026-11-25): with a window spanning ~0.7 periods
+#: (18 us) lambda_max is 4.7-5.3 /ms at every step; spanning ~1.1 periods (27-28 us) it is
+#: 2.4-2.7 /ms (exact 2.29): the state in the off-phase between spikes is visible only to a
+#: window reaching back over the previous pulse.  The grid brackets both sides.
+SPAN_GRID = (0.75, 1.0, 1.25, 1.5)
+#: Largest window length tried (2 m coordinates per neighbourhood fit).
+MAX_WINDOW = 14
+#: Neighbourhood sizes of the spectrum model's grid.
+NEIGHBOUR_GRID = (50, 100, 200)
+#: Relative ridges of the spectrum model's grid.
+SPECTRUM_RIDGE_GRID = (1e-3, 1e-2)
+#: Horizon of the scored free runs, in delays (see :func:`select_spectrum_model`).
+HORIZON_DELAYS = 4.0
+#: Fractions of the horizon at which the free run's error is scored.
+HORIZON_FRACTIONS = (0.25, 0.5, 0.75, 1.0)
+#: Free runs scored per test fold.
+N_RUNS_SCORED = 100
+
+
+def dominant_period(series, max_lag):
+    """Lag (samples) of the first autocorrelation maximum after its first minimum.
+
+    The period of the fastest oscillation that dominates the series (for the
+    laser: the ~25 us relaxation oscillation of the feedback loop); ``None``
+    when the autocorrelation has no such maximum within ``max_lag``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from skdelay._model_selection import dominant_period
+    >>> t = np.arange(5000)
+    >>> dominant_period(np.sin(2 * np.pi * t / 25.0), 100)
+    25
+    """
+    from ._correlation import autocorrelation
+
+    s = check_series(series, name="series", min_length=8)
+    max_lag = int(min(max_lag, s.size // 2))
+    acf = autocorrelation(s, max_lag)
+    d = np.diff(acf)
+    rising = np.flatnonzero((d[:-1] < 0) & (d[1:] >= 0))  # first minimum
+    if rising.size == 0:
+        return None
+    lo = int(rising[0]) + 1
+    falling = np.flatnonzero((d[lo:-1] > 0) & (d[lo + 1:] <= 0))
+    return None if falling.size == 0 else int(lo + falling[0] + 1)
+
+
+@dataclass(frozen=True)
+class SpectrumModelSelection:
+    """The cross-validated model behind the reported spectrum.
+
+    ``step`` (samples per model step), ``m`` (window length in model steps),
+    ``tau`` (delay in model steps), ``options`` (neighbours and ridge),
+    ``horizon`` (scored free-run length, samples), ``period`` (dominant
+    period, samples) and ``table`` (one row per setting: ``step``, ``m``,
+    ``span``, ``n_neighbors``, ``ridge``, ``error``, ``chosen``).
+    """
+
+    step: int
+    m: int
+    tau: int
+    options: ModelOptions
+    horizon: int
+    period: int | None
+    table: pd.DataFrame
+
+    def describe(self):
+        """One sentence: the chosen settings, in samples of the series."""
+        return (f"step {self.step}, window m = {self.m} (spanning {self.m * self.step} "
+                f"samples), delay {self.tau * self.step} samples, k = "
+                f"{self.options.n_neighbors}, ridge {self.options.ridge:g}; chosen by "
+                f"time-series cross-validation of free runs over {self.horizon} samples")
+
+
+def _tracking_scorer(scale, n_runs, seed, steps):
+    """Negative RMS error of free runs from the true history at ``steps`` (model steps)."""
+    steps = np.asarray(steps, dtype=int)
+
+    def score(estimator, X, y):
+        rows = _rows(len(X), n_runs, seed, margin=int(steps.max()))
+        err = np.empty((rows.size, steps.size))
+        for j, i in enumerate(rows):
+            run = iterate(estimator, X[i, ::-1], int(steps.max()), on_escape="ignore")
+            for q, st in enumerate(steps):
+                # an escaped run has forecast nothing: a guess from the data's distribution
+                err[j, q] = (run[st - 1] - y[i + st - 1] if run.size >= st
+                             else np.sqrt(2) * scale)
+        return -float(np.sqrt(np.mean(err ** 2))) / scale
+
+    return score
+
+
+def select_spectrum_model(series, delay, *, steps=STEP_GRID, spans=SPAN_GRID,
+                          n_neighbors=NEIGHBOUR_GRID, ridge=SPECTRUM_RIDGE_GRID,
+                          horizon=None, max_window=MAX_WINDOW, n_runs=N_RUNS_SCORED,
+                          theiler_window=2, random_state=0, n_jobs=None):
+    """Time scale, window, neighbours and ridge of the spectrum model, from the data alone.
+
+    The Lyapunov exponents of a local linear delay model depend on how well
+    its local Jacobians reproduce the growth of small differences.  One-step
+    forecasts hardly test that (they are made from the true state), so each
+    setting is scored by its **free runs from the true history** on the later
+    folds of a ``TimeSeriesSplit``: the RMS error at a quarter, half, three
+    quarters and all of ``horizon`` samples, normalised by the series' std.
+    Errors of the local Jacobians compound along such a run, so a model whose
+    Jacobians stretch too much (or too little) drifts away from the data
+    sooner.  Settings of different ``step`` are scored at the same horizons in
+    samples, hence comparable.  For each ``step``, scikit-learn's
+    ``GridSearchCV`` runs on the pipeline ``TwoWindowEmbedding ->
+    LocalLinearDelayMap`` of the series sampled every ``step`` samples (grid:
+    window length ``m`` for each span, ``n_neighbors``, ``ridge``); the best
+    over all steps is returned.
+
+    Parameters
+    ----------
+    series : array-like of shape (n_samples,)
+    delay : int
+        Feedback delay in samples (the dip of the delay scan).
+    steps : sequence of int
+        Samples per model step.
+    spans : sequence of float
+        Window spans ``m * step`` in units of the dominant period
+        (:func:`dominant_period`; in units of ``delay / 2`` when there is none).
+    n_neighbors, ridge : sequence
+        Neighbourhood sizes and relative ridges.
+    horizon : int, default=None
+        Samples of the scored free runs (default ``HORIZON_DELAYS`` delays: the
+        errors of the Jacobians have been fed back through the delay loop a
+        few times, but the runs are not yet decorrelated from the data).
+    max_window : int
+        Largest ``m``.
+    n_runs : int
+        Free runs scored per test fold.
+    theiler_window : int
+    random_state : int
+        Seeds the scored start points.
+    n_jobs : int, default=None
+        joblib workers of ``GridSearchCV``.
+
+    Returns
+    -------
+    SpectrumModelSelection
+    """
+    s = check_series(series, name="series", min_length=200)
+    delay = check_positive_int(delay, name="delay")
+    horizon = (int(round(HORIZON_DELAYS * delay)) if horizon is None
+               else check_positive_int(horizon, name="horizon"))
+    period = dominant_period(s, max(2 * delay, 50))
+    unit = period if period is not None else max(1, delay // 2)
+    scale = float(s.std())
+    rows, best, best_score = [], None, -np.inf
+    for h in sorted({check_positive_int(v, name="step") for v in steps}):
+        tau_h = max(1, int(round(delay / h)))
+        ms = sorted({min(max_window, max(2, int(round(w * unit / h)))) for w in spans})
+        s_h = s[::h]
+        n_lags = max(required_lags(mm, tau_h) for mm in ms)
+        # free-run steps of the scored horizons (at least one model step each)
+        st = sorted({max(1, int(round(f * horizon / h))) for f in HORIZON_FRACTIONS})
+        if s_h.size < 4 * (n_lags + st[-1]) + 100:
+            continue
+        X, y = lagged_windows(s_h, n_lags)
+        pipe = Pipeline([("embedding", TwoWindowEmbedding(m=ms[0], tau=tau_h)),
+                         ("model", LocalLinearDelayMap(theiler_window=theiler_window))])
+        grid = {"embedding__m": ms, "model__n_neighbors": [int(k) for k in n_neighbors],
+                "model__ridge": [float(r) for r in ridge]}
+        search = GridSearchCV(
+            pipe, grid, cv=TimeSeriesSplit(n_splits=N_SPLITS),
+            scoring=_tracking_scorer(scale, n_runs, random_state, st), refit=False,
+            n_jobs=n_jobs, error_score="raise")
+        search.fit(X, y)
+        res = search.cv_results_
+        for j in range(len(res["params"])):
+            p = res["params"][j]
+            score = float(res["mean_test_score"][j])
+            rows.append({"step": h, "m": int(p["embedding__m"]),
+                         "span": h * int(p["embedding__m"]),
+                         "n_neighbors": int(p["model__n_neighbors"]),
+                         "ridge": float(p["model__ridge"]), "error": -score})
+            if score > best_score:
+                best_score, best = score, (h, tau_h, p)
+    if best is None:
+        raise ValueError(f"series of {s.size} samples is too short to cross-validate free "
+                         f"runs over {horizon} samples; pass a longer series or a shorter "
+                         "horizon.")
+    table = pd.DataFrame(rows)
+    h, tau_h, p = best
+    table["chosen"] = ((table["step"] == h) & (table["m"] == p["embedding__m"])
+                       & (table["n_neighbors"] == p["model__n_neighbors"])
+                       & (table["ridge"] == p["model__ridge"]))
+    options = ModelOptions(n_neighbors=int(p["model__n_neighbors"]),
+                           ridge=float(p["model__ridge"]), theiler_window=theiler_window)
+    return SpectrumModelSelection(step=h, m=int(p["embedding__m"]), tau=tau_h,
+                                  options=options, horizon=horizon, period=period,
+                                  table=table)
+
+
+def spectrum_of_selection(series, selection, *, n_exponents=20, n_steps=None, sample_dt=1.0,
+                          flow=False, random_state=0, n_jobs=None):
+    """Fit the selected model on the whole series and return its Lyapunov spectrum.
+
+    Parameters
+    ----------
+    series : array-like of shape (n_samples,)
+        The series the selection was made on (sampling step ``sample_dt``).
+    selection : SpectrumModelSelection
+        From :func:`select_spectrum_model`.
+    n_exponents : int, default=20
+        Exponents computed (at most the model's state dimension).
+    n_steps : int, default=None
+        Model steps along the series used (default: all).
+    sample_dt : float, default=1.0
+        Sampling interval of ``series``; exponents are per its time unit (the
+        model's step is ``selection.step * sample_dt``).
+    flow : bool, default=False
+        Pin the exponent nearest zero (see :func:`skdelay.dynamics.lyapunov_spectrum`).
+    random_state : int, default=0
+    n_jobs : int, default=None
+
+    Returns
+    -------
+    LyapunovSpectrum
+    """
+    from ._lyapunov import lyapunov_spectrum
+    from ._model import fit_delay_model
+
+    s = check_series(series, name="series")[::selection.step]
+    model = fit_delay_model(s, selection.m, selection.tau, selection.options)
+    n_exp = min(int(n_exponents), required_lags(selection.m, selection.tau))
+    return lyapunov_spectrum(model, s, n_exponents=n_exp, n_steps=n_steps,
+                             sample_dt=sample_dt * selection.step, flow=flow,
+                             random_state=random_state, n_jobs=n_jobs)

@@ -1,0 +1,65 @@
+"""The cross-validated spectrum model: dominant period, free-run score, chosen settings."""
+
+import numpy as np
+import pytest
+
+from skdelay._model_selection import (
+    dominant_period,
+    select_spectrum_model,
+    spectrum_of_selection,
+)
+from skdelay.systems import MackeyGlass, measure
+
+
+@pytest.fixture(scope="module")
+def mg():
+    x = MackeyGlass(tau=17.0).simulate(8000, random_state=0)
+    return measure(x, noise=0.005, random_state=1)
+
+
+def test_dominant_period_of_a_sine_and_of_white_noise():
+    t = np.arange(4000)
+    assert dominant_period(np.sin(2 * np.pi * t / 31.0), 100) == 31
+    rng = np.random.default_rng(0)
+    p = dominant_period(rng.standard_normal(4000), 50)
+    # white noise has no oscillation: either no maximum or one at a random short lag whose
+    # autocorrelation is at the noise level
+    assert p is None or p < 50
+
+
+def test_dominant_period_of_mackey_glass_is_its_quasi_period(mg):
+    # Mackey-Glass tau = 17 oscillates with a period of about 50 time units
+    assert 40 <= dominant_period(mg, 120) <= 60
+
+
+def test_selection_picks_the_smallest_cross_validated_free_run_error(mg):
+    sel = select_spectrum_model(mg, 17, steps=(1, 2), spans=(0.1, 0.2), n_neighbors=(15, 40),
+                                ridge=(1e-3,), horizon=20, n_runs=15, random_state=0)
+    table = sel.table
+    assert int(table["chosen"].sum()) == 1
+    best = table[table["chosen"]].iloc[0]
+    assert best["error"] == pytest.approx(table["error"].min())
+    assert (sel.step, sel.m, sel.options.n_neighbors) == (
+        int(best["step"]), int(best["m"]), int(best["n_neighbors"]))
+    assert sel.tau == round(17 / sel.step)
+    assert set(table["step"]) == {1, 2}
+    # free runs from the true history over 20 steps track Mackey-Glass far better than a
+    # guess from its distribution (sqrt(2) std)
+    assert 0 < best["error"] < 0.5
+    assert "step" in sel.describe()
+
+
+def test_spectrum_of_the_selection_has_the_mackey_glass_exponent(mg):
+    sel = select_spectrum_model(mg, 17, steps=(1,), spans=(0.1,), n_neighbors=(20,),
+                                ridge=(1e-3,), horizon=20, n_runs=10)
+    spec = spectrum_of_selection(mg, sel, n_exponents=4)
+    # lambda_1 of Mackey-Glass tau = 17 is about 0.006-0.009 per time unit
+    assert 0.002 < spec.exponents[0] < 0.012
+    assert spec.sample_dt == pytest.approx(sel.step)
+
+
+def test_too_short_a_series_for_the_horizon_is_refused():
+    x = MackeyGlass(tau=17.0).simulate(600, random_state=0)
+    with pytest.raises(ValueError, match="too short"):
+        select_spectrum_model(x, 17, steps=(1,), spans=(0.2,), n_neighbors=(10,),
+                              ridge=(1e-3,), horizon=400)
