@@ -519,80 +519,6 @@ def scan_cells(s, q_t, lists, rk2, row_of, u_min, starts, m, k, radius2, width, 
 
 
 @njit(cache=True, inline="always")
-def _box_dist2(q, lo, hi):
-    """Squared distance of ``q`` to the box ``[lo, hi]``."""
-    acc = 0.0
-    for j in range(q.size):
-        if q[j] < lo[j]:
-            t = lo[j] - q[j]
-            acc += t * t
-        elif q[j] > hi[j]:
-            t = q[j] - hi[j]
-            acc += t * t
-    return acc
-
-
-@njit(cache=True, inline="always")
-def _heap_replace(hd, hj, d, j):
-    """Replace the root of the max-heap ``(hd, hj)`` by ``(d, j)`` and restore the heap."""
-    k = hd.size
-    pos = 0
-    while True:
-        child = 2 * pos + 1
-        if child >= k:
-            break
-        if child + 1 < k and hd[child + 1] > hd[child]:
-            child += 1
-        if hd[child] <= d:
-            break
-        hd[pos] = hd[child]
-        hj[pos] = hj[child]
-        pos = child
-    hd[pos] = d
-    hj[pos] = j
-
-
-@njit(cache=True, inline="always")
-def _node_push(nd, nn, size, d, node):
-    """Push ``(d, node)`` onto the min-heap ``(nd, nn)`` of ``size`` entries; new size."""
-    pos = size
-    while pos > 0:
-        parent = (pos - 1) // 2
-        if nd[parent] <= d:
-            break
-        nd[pos] = nd[parent]
-        nn[pos] = nn[parent]
-        pos = parent
-    nd[pos] = d
-    nn[pos] = node
-    return size + 1
-
-
-@njit(cache=True, inline="always")
-def _node_pop(nd, nn, size):
-    """Remove the root of the min-heap ``(nd, nn)``; returns the new size."""
-    size -= 1
-    d = nd[size]
-    node = nn[size]
-    pos = 0
-    while True:
-        child = 2 * pos + 1
-        if child >= size:
-            break
-        if child + 1 < size and nd[child + 1] < nd[child]:
-            child += 1
-        if nd[child] >= d:
-            break
-        nd[pos] = nd[child]
-        nn[pos] = nn[child]
-        pos = child
-    if size > 0:
-        nd[pos] = d
-        nn[pos] = node
-    return size
-
-
-@njit(cache=True, inline="always")
 def _node_dist2(q, box_lo, box_hi, node):
     """Squared distance of ``q`` to the box of ``node`` (rows of ``box_lo``/``box_hi``)."""
     acc = 0.0
@@ -622,6 +548,14 @@ def _sift_down(hd, hj, pos):
         hd[pos], hd[child] = hd[child], hd[pos]
         hj[pos], hj[child] = hj[child], hj[pos]
         pos = child
+
+
+@njit(cache=True, inline="always")
+def _heap_replace(hd, hj, d, j):
+    """Replace the root of the max-heap ``(hd, hj)`` by ``(d, j)`` and restore the heap."""
+    hd[0] = d
+    hj[0] = j
+    _sift_down(hd, hj, 0)
 
 
 @njit(cache=True, nogil=True)
