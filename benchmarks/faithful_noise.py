@@ -29,7 +29,7 @@ from skdelay.systems import MackeyGlass, measure
 
 NOISE_LEVELS = (0.0, 0.01, 0.05)
 COLUMNS = ["tau", "faithful", "histogram", "histogram_band", "spectrum", "spectrum_band",
-           "chi", "chi_band", "lyapunov", "lambda_1", "d_ky"]
+           "chi", "chi_band", "support", "support_band", "clipped", "lyapunov", "lambda_1", "d_ky"]
 
 
 def main(argv=None):

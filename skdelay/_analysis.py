@@ -413,7 +413,7 @@ class AnalysisOptions:
     step : int
         Analyse every ``step``-th sample; None chooses it from the data
         (:func:`~skdelay._sampling.sampling_step`: 1 unless the record is so
-        oversampled that the one-step increment drowns in measurement noise).
+        oversampled that its second difference drowns in measurement noise).
         Delay ranges (``tau_min``, ``tau_max``) are in the original samples.
     select_model : bool
         Choose the models' neighbourhood size and ridge by time-series

@@ -71,26 +71,33 @@ class Trajectory(np.ndarray):
         Index (into this array) of the step that would have escaped.
     reason : str
         Why it stopped (empty if it did not).
+    clipped : int
+        Steps whose value was set to the nearer end of the data's range
+        (``clip_to_range=True``; 0 otherwise).
     """
 
-    def __new__(cls, values, *, escaped=False, escape_step=None, reason=""):
+    def __new__(cls, values, *, escaped=False, escape_step=None, reason="", clipped=0):
         obj = np.asarray(values, dtype=np.float64).view(cls)
         obj.escaped, obj.escape_step, obj.reason = escaped, escape_step, reason
+        obj.clipped = int(clipped)
         return obj
 
     def __array_finalize__(self, obj):
         self.escaped = getattr(obj, "escaped", False)
         self.escape_step = getattr(obj, "escape_step", None)
         self.reason = getattr(obj, "reason", "")
+        self.clipped = getattr(obj, "clipped", 0)
 
 
 @njit(cache=True)
 def _run(buf, n_hist, n_steps, lags, data, targets, tree, k, k_query, radius2, ridge, order,
-         kicks, lo, hi, max_d2):
-    """Fill ``buf[n_hist:n_hist+n_steps]``; return ``(n_done, reason_code)``.
+         kicks, lo, hi, max_d2, clip_lo, clip_hi):
+    """Fill ``buf[n_hist:n_hist+n_steps]``; return ``(n_done, reason_code, n_clipped)``.
 
     ``k_query >= k`` neighbours are searched; all within ``radius2`` (squared
     radius, ``inf`` = plain k-NN) are used, and at least the ``k`` nearest.
+    Values beyond ``[clip_lo, clip_hi]`` (``-inf, inf``: no clipping) are set to
+    the nearer end and counted.
     """
     nf = lags.size
     v = np.empty(nf)
@@ -104,13 +111,14 @@ def _run(buf, n_hist, n_steps, lags, data, targets, tree, k, k_query, radius2, r
     g = np.empty((nf, nf))
     rhs = np.empty(nf)
     grad = np.empty(nf)
+    n_clipped = 0
     for t in range(n_steps):
         pos = n_hist + t
         for f in range(nf):
             v[f] = buf[pos - 1 - lags[f]]
         query_knn(data, tree, v, k_query, best_d, best_i, stack)
         if best_d[0] > max_d2:
-            return t, 1
+            return t, 1, n_clipped
         for j in range(k_query):
             if j >= k and best_d[j] > radius2:
                 nb_w[j] = 0.0
@@ -123,11 +131,17 @@ def _run(buf, n_hist, n_steps, lags, data, targets, tree, k, k_query, radius2, r
         _, y = fit_neighbourhood(nb_x, nb_y, nb_w, v, ridge, order, 0.0, mu, g, rhs, grad)
         y += kicks[t]
         if not np.isfinite(y):
-            return t, 2
+            return t, 2, n_clipped
+        if y < clip_lo:
+            y = clip_lo
+            n_clipped += 1
+        elif y > clip_hi:
+            y = clip_hi
+            n_clipped += 1
         if y < lo or y > hi:
-            return t, 3
+            return t, 3, n_clipped
         buf[pos] = y
-    return n_steps, 0
+    return n_steps, 0, n_clipped
 
 
 class _NoBar:
@@ -213,6 +227,7 @@ class SupportGuard:
         lo = min(self.targets.min(), self.data.min())
         hi = max(self.targets.max(), self.data.max())
         width = hi - lo
+        self.range_lo, self.range_hi = lo, hi  # the data's own range (rescaled units)
         self.lo, self.hi = lo - range_margin * width, hi + range_margin * width
 
 
@@ -250,13 +265,14 @@ def _nearest_other(data, tree, probe):
 
 
 def run_model(guard, history, n_steps, lags, *, k, radius, ridge, order, kicks, on_escape,
-              progress=None):
+              progress=None, clip=False):
     """Iterate and handle escapes; returns a :class:`Trajectory` of the new values.
 
     ``k``, ``radius``, ``ridge``, ``order`` as in the fitted
     :class:`~skdelay.LocalLinearDelayMap` (radius neighbourhoods hold at most
     ``RADIUS_CAP * k`` points, as there); ``history``, ``radius`` and the
-    ``kicks`` in data units (the loop runs on rescaled values).
+    ``kicks`` in data units (the loop runs on rescaled values).  ``clip``: values
+    beyond the data's range are set to its nearer end (counted in ``clipped``).
     """
     n_hist = history.size
     buf = np.empty(n_hist + n_steps)
@@ -267,19 +283,22 @@ def run_model(guard, history, n_steps, lags, *, k, radius, ridge, order, kicks, 
     radius2 = np.inf if radius is None else (float(radius) / guard.scaler.scale) ** 2
     kicks = np.asarray(kicks, dtype=np.float64) / guard.scaler.scale
     lags = np.asarray(lags, dtype=np.int64)
-    n_done, code = 0, 0
+    n_done, code, n_clipped = 0, 0, 0
+    clip_lo, clip_hi = (guard.range_lo, guard.range_hi) if clip else (-np.inf, np.inf)
     with progress_bar(n_steps, "free run", progress) as bar:
         while n_done < n_steps and code == 0:  # in chunks, for the progress bar
             size = min(RUN_CHUNK, n_steps - n_done)
-            done, code = _run(buf, n_hist + n_done, size, lags, guard.data, guard.targets,
-                              guard.tree, k, k_query, radius2, float(ridge), int(order),
-                              kicks[n_done:n_done + size], guard.lo, guard.hi,
-                              guard.max_distance ** 2)
+            done, code, clipped = _run(buf, n_hist + n_done, size, lags, guard.data,
+                                       guard.targets, guard.tree, k, k_query, radius2,
+                                       float(ridge), int(order), kicks[n_done:n_done + size],
+                                       guard.lo, guard.hi, guard.max_distance ** 2,
+                                       clip_lo, clip_hi)
             n_done += done
+            n_clipped += clipped
             bar.update(done)
     out = guard.scaler.inverse(buf[n_hist:n_hist + n_done])
     if code == 0:
-        return Trajectory(out)
+        return Trajectory(out, clipped=n_clipped)
     reason = ESCAPE_REASONS[code]
     msg = (f"the model escaped after {n_done} of {n_steps} steps: {reason}. The run was cut "
            "there. Use a model fitted on more (or less noisy) data, a larger m, fewer steps, "
@@ -288,7 +307,7 @@ def run_model(guard, history, n_steps, lags, *, k, radius, ridge, order, kicks, 
         raise ModelEscapeError(msg)
     if on_escape == "warn":
         warnings.warn(msg, ModelEscapeWarning, stacklevel=3)
-    return Trajectory(out, escaped=True, escape_step=n_done, reason=reason)
+    return Trajectory(out, escaped=True, escape_step=n_done, reason=reason, clipped=n_clipped)
 
 
 def support_guard(reg, *, distance_factor, range_margin):
@@ -335,7 +354,8 @@ def check_tau(tau, model):
 
 
 def iterate(model, history, n_steps, *, tau=None, noise=0.0, random_state=None,
-            on_escape="warn", escape_distance=5.0, range_margin=0.25, progress=None):
+            on_escape="warn", escape_distance=5.0, range_margin=0.25, clip_to_range=False,
+            progress=None):
     """Free-run a fitted two-window model from an initial history.
 
     Each step builds ``v_n(m, tau)`` from the last values, fits the local
@@ -374,6 +394,11 @@ def iterate(model, history, n_steps, *, tau=None, noise=0.0, random_state=None,
     range_margin : float, default=0.25
         ... or when a value leaves the data range widened by this fraction
         of its width (or is not finite).
+    clip_to_range : bool, default=False
+        Set a value beyond the data's range (of the model's database) to the
+        nearer end of it, and count it (``Trajectory.clipped``): for data with a
+        hard edge -- a positive quantity such as an intensity, whose zero is an
+        invariant boundary that a local linear map, extrapolating, overshoots.
     progress : bool, default=None
         Show a tqdm progress bar (with ETA); None: only inside
         :func:`~skdelay._iterate.progress_bars` (``skdelay analyze``).
@@ -422,4 +447,4 @@ def iterate(model, history, n_steps, *, tau=None, noise=0.0, random_state=None,
         return run_model(guard, hist, n_steps, mdl.lags(tau), k=reg.n_neighbors,
                          radius=getattr(reg, "radius", None), ridge=reg.ridge,
                          order=getattr(reg, "order", 1), kicks=kicks, on_escape=on_escape,
-                         progress=progress)
+                         progress=progress, clip=bool(clip_to_range))

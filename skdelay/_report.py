@@ -270,7 +270,8 @@ def analysis_sections(result, *, scale=1.0, unit="1/time unit", prefix=""):
         f"<p>{html.escape(result.name)}: {result.series.size} samples, sampling interval "
         f"{dt / result.step:g}. "
         + ("" if result.step == 1 else
-           f"The record is oversampled (its one-step increment is comparable to the "
+           f"The record is oversampled (the part of the next sample that the last samples "
+           f"cannot extrapolate, its second difference, is comparable to the "
            f"measurement noise): every {result.step}-th sample was analysed, so the delays "
            f"below are in steps of {dt:g}; the model's delay is {result.delay * result.step} "
            "samples of the record. ")

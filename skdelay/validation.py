@@ -49,6 +49,7 @@ __all__ = [
     "power_spectrum",
     "revival_peak",
     "spectrum_distance",
+    "support_distance",
     "value_histogram",
 ]
 
@@ -269,6 +270,65 @@ def cross_prediction_by_region(x, y, *, m, tau, order=0, n_neighbors=30, theiler
                        "chi_self": chi_self})
     df["excess"] = df["chi"] - df["chi_self"]
     return df.sort_values("excess", ascending=False, na_position="last").reset_index(drop=True)
+
+
+def support_distance(x, y, *, m, tau, factor=5.0, quantile=0.99, n_probe=2000,
+                     random_state=None):
+    """Fraction of the two-window vectors of ``y`` that lie off the support of ``x``.
+
+    A vector of ``y`` is off the support of ``x`` when its nearest vector of
+    ``x`` is farther than ``factor`` times the ``quantile`` of the distances
+    between the vectors of ``x`` and their nearest other vector of ``x``
+    (the guard of :func:`skdelay.dynamics.iterate`).  Both series are
+    standardised by ``x``'s mean and std.  0 when every state of ``y`` is one
+    that ``x`` visits; a model run that wanders where the data never go scores
+    more than pairs of data segments of its length do.
+
+    Parameters
+    ----------
+    x, y : array-like of shape (n_samples,)
+        Database (e.g. a data segment) and the series judged (e.g. a model run).
+    m, tau : int
+        Window length and delay (samples) of the two-window vectors.
+    factor : float, default=5.0
+    quantile : float, default=0.99
+    n_probe : int, default=2000
+        Vectors of ``x`` whose nearest-neighbour distances set the scale.
+    random_state : int, RandomState or None
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from skdelay.validation import support_distance
+    >>> t = np.arange(4000)
+    >>> x, y = np.sin(t / 7.0), np.sin(t / 7.0 + 1.0)
+    >>> support_distance(x, y, m=2, tau=5), support_distance(x, 3 * y, m=2, tau=5) > 0.5
+    (0.0, True)
+    """
+    m = check_positive_int(m, name="m")
+    tau = check_positive_int(tau, name="tau")
+    n_lags = required_lags(m, tau)
+    cols = two_window_columns(m, tau)
+    sx = check_series(x, name="x", min_length=n_lags + 2)
+    sy = check_series(y, name="y", min_length=n_lags + 1)
+    sx, centre, scale = standardise(sx)
+    Vx = np.ascontiguousarray(lagged_windows(sx, n_lags)[0][:, cols])
+    Vy = np.ascontiguousarray(lagged_windows((sy - centre) / scale, n_lags)[0][:, cols])
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(Vx)
+    rng = check_random_state(random_state)
+    probe = rng.choice(Vx.shape[0], size=min(Vx.shape[0], int(n_probe)), replace=False)
+    own = tree.query(Vx[probe], k=2)[0][:, 1]
+    limit = float(factor) * float(np.quantile(own, quantile))
+    if not limit > 0:
+        return 0.0
+    d = tree.query(Vy, k=1, distance_upper_bound=limit)[0]
+    return float(np.mean(~np.isfinite(d)))
 
 
 # --------------------------------------------------------------------------- profiles

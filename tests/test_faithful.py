@@ -199,3 +199,63 @@ def test_report_says_when_the_models_were_fitted_on_noise_reduced_data(denoised)
     text = faithful_sentence(res)
     assert "m_d = 2" in text
     assert ("noise-reduced data" in text) == denoised and ("4.9%" in text) == denoised
+
+
+# ----------------------------------------------------------------------------- issue 13, round 3
+def test_runs_clipped_to_the_data_range_are_counted():
+    from sklearn.pipeline import make_pipeline
+
+    from skdelay import LocalLinearDelayMap, TwoWindowEmbedding, lagged_windows
+    from skdelay.dynamics import iterate
+    from skdelay.systems import MackeyGlass
+
+    x = MackeyGlass(tau=17.0).simulate(6000, random_state=0)
+    X, y = lagged_windows(x, 18)
+    model = make_pipeline(TwoWindowEmbedding(m=2, tau=17),
+                          LocalLinearDelayMap(n_neighbors=20)).fit(X, y)
+    # strong dynamical noise pushes the run beyond the data's range again and again
+    kw = {"noise": 0.3 * x.std(), "random_state": 1, "on_escape": "ignore",
+          "escape_distance": 1e6}
+    free = iterate(model, x[:100], 3000, range_margin=10.0, **kw)
+    clipped = iterate(model, x[:100], 3000, clip_to_range=True, **kw)
+    assert free.clipped == 0 and (free.min() < x.min() or free.max() > x.max())
+    assert clipped.size == 3000 and clipped.clipped > 0
+    lo, hi = x.min(), x.max()
+    assert lo - 1e-9 <= clipped.min() and clipped.max() <= hi + 1e-9
+    at_edge = np.isclose(clipped, lo, rtol=0, atol=1e-9) | np.isclose(clipped, hi, rtol=0,
+                                                                        atol=1e-9)
+    assert int(at_edge.sum()) == clipped.clipped  # every clipped step, and only those
+
+
+def test_support_distance_is_zero_for_the_same_dynamics_and_large_off_it(mg17):
+    from skdelay.validation import support_distance
+
+    a, b = mg17[:8000], mg17[20_000:28_000]
+    assert support_distance(a, b, m=3, tau=17, random_state=0) == 0.0
+    # the same values in a different order: states the data never visit
+    rng = np.random.default_rng(0)
+    shuffled = rng.permutation(b)
+    assert support_distance(a, shuffled, m=3, tau=17, random_state=0) > 0.5
+
+
+def test_control_records_of_the_true_system_lie_within_the_bands(result, mg17):
+    """The bands are wide enough for a perfect model: independent records of the system
+    that made the data pass every distance; records of another delay do not."""
+    from skdelay.systems import MackeyGlass, measure
+
+    tab = result.table
+    assert set(tab.attrs["bands"]) == {"histogram", "spectrum", "chi", "support"}
+    for c in ("histogram", "spectrum", "chi", "support"):
+        assert (tab[f"{c}_band"] == tab.attrs["bands"][c]).all()
+
+    def records(tau):
+        return [measure(MackeyGlass(tau=tau).simulate(8000, random_state=40 + r),
+                        noise=0.005, random_state=50 + r) for r in range(3)]
+
+    same = minimal_embedding(mg17, tau=17, m_min=2, m_max=2, n_steps=8000, n_runs=1,
+                             control=records(17.0), random_state=0).table.attrs
+    other = minimal_embedding(mg17, tau=17, m_min=2, m_max=2, n_steps=8000, n_runs=1,
+                              control=records(23.0), random_state=0).table.attrs
+    print(same["control"], other["control"], same["bands"])
+    assert all(same["control_pass"].values()), same["control"]
+    assert not other["control_pass"]["spectrum"] and not other["control_pass"]["chi"]

@@ -1,0 +1,76 @@
+"""Oversampled delay equations: no significant dip at the raw step, the delay at the chosen one.
+
+The delay equation here has a right-hand side that depends *only* on the delayed
+value, ``dx/dt = x(t-1) (g exp(-x(t-1)^2) - 1)``: sampled 50 times per delay,
+the one-step increment is far above the 0.5 % measurement noise, yet the first
+window extrapolates almost all of it, so what the delayed window could add (the
+second difference) is buried in the noise and sigma_m(tau) shows no significant
+dip.  :func:`skdelay._sampling.sampling_step` finds the coarser step from the
+data, and there the dip sits at the delay.
+"""
+
+import warnings
+
+import numpy as np
+import pytest
+from numba import njit
+
+from skdelay import DelaySelectorCV, NoDipWarning, analyze_series, lagged_windows
+from skdelay._embedding import required_lags
+from skdelay._sampling import sampling_step
+from skdelay.systems import measure
+
+PER_DELAY = 50
+
+
+@njit(cache=True)
+def _delayed_only(g, n, per_delay, substeps):
+    """Heun steps of dx/dt = x(t-1) (g exp(-x(t-1)^2) - 1), every ``substeps``-th kept."""
+    h = 1.0 / per_delay / substeps
+    d = per_delay * substeps
+    steps = (n + 4000) * substeps
+    x = np.empty(steps + d + 1)
+    for i in range(d + 1):
+        x[i] = 1.0 + 0.1 * np.sin(i * 0.01)
+    for i in range(d, d + steps):
+        a, b = x[i - d], x[i - d + 1]
+        x[i + 1] = x[i] + 0.5 * h * (a * (g * np.exp(-a * a) - 1.0)
+                                     + b * (g * np.exp(-b * b) - 1.0))
+    return x[d + 4000 * substeps::substeps][:n]
+
+
+@pytest.fixture(scope="module")
+def delayed_only():
+    raw = _delayed_only(4.3, 20_000, PER_DELAY, 5)
+    assert np.all(np.isfinite(raw)) and raw.std() > 0.5  # bounded, irregular oscillation
+    return measure(raw, noise=0.005, random_state=0)
+
+
+def test_raw_step_has_no_significant_dip_and_no_delay(delayed_only):
+    X, y = lagged_windows(delayed_only, required_lags(3, 90))
+    with pytest.warns(NoDipWarning, match="no window length shows a significant") as rec:
+        sel = DelaySelectorCV(m=(2, 3), tau=range(20, 91), n_queries=2000,
+                              random_state=0).fit(X, y)
+    print(sel.delay_by_m_.to_string())  # the test behind the verdict
+    assert np.isnan(sel.delay_) and np.isnan(sel.delay_error_)
+    assert not sel.delay_by_m_["significant"].any()
+    assert "a coarser sampling step" in str(rec[0].message)
+
+
+def test_automatic_step_finds_the_delay_within_one_coarse_sample(delayed_only):
+    step = sampling_step(delayed_only)
+    # at least 2 (the raw step shows no dip), and the delay still spans several samples
+    assert 2 <= step <= PER_DELAY // 5
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", NoDipWarning)  # the coarse scan has a significant dip
+        res = analyze_series(delayed_only, m=(2, 3), tau_min=20, tau_max=90, quick=True)
+    row = res.summary_row()
+    print(step, res.delays.to_string())  # the dips behind the verdict (coarse samples)
+    assert res.step == step and row["sampling_step"] == step
+    good = res.delays[res.delays["significant"]]
+    assert len(good)  # at the raw step no m had a significant dip
+    # the delay estimate (dip centre) of every significant m, in record samples, within one
+    # coarse sample of the delay
+    centres = good["delay"].to_numpy() * step
+    assert np.all(np.abs(centres - PER_DELAY) <= step), centres
+    assert "oversampled" in res.summary()
