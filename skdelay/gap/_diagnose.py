@@ -501,8 +501,10 @@ def _diagnose(real, simulator, *, sample_dt, effects, random_state, n_jobs, n_si
         # is handed to the effects that leave their mark there; a broadband best effect
         # cannot mask it
         off = off_indicators(problem, after)
+        # the band-averaged spectrum is the spectrum's broadband view: same signatures
+        off_family = {"spectrum" if k == "band_spectrum" else k for k in off}
         others = [e for e in candidates if e.name != best
-                  and (not e.signature or not off or set(e.signature) & set(off))]
+                  and (not e.signature or not off or set(e.signature) & off_family)]
         more = parallel(delayed(fit_effect)(e, problem, chain) for e in others)
         cv2 = None
         if cv is not None:
