@@ -1,9 +1,11 @@
-"""Band-averaged spectrum: broadband power per log-spaced band."""
+"""Band-averaged spectrum (broadband power) and consistency-first ranking of candidates."""
 
 import numpy as np
+import pandas as pd
 import pytest
 from scipy import signal
 
+from skdelay.gap import _diagnose
 from skdelay.gap._indicators import (
     BAND_MIN_BINS,
     BandSpectrum,
@@ -69,3 +71,34 @@ def test_broadband_excess_seen_by_bands_not_by_bins():
     _, z_null, gap_null = _gaps(BandSpectrum, _coloured(n, 77), sims)
     assert np.max(np.abs(z_null)) < 4.0 and gap_null < 2.0, z_null
 
+
+def _table(rows):
+    return pd.DataFrame([{"effect": e, "params": {"p": 1.0}, "status": "ok", "shrink": s}
+                         for e, s in rows])
+
+
+@pytest.mark.parametrize(("second_shrink", "first"), [(0.93, "timebase_mismatch"),
+                                                      (0.80, "delay_mismatch")])
+def test_consistent_candidate_preferred_within_slack(monkeypatch, second_shrink, first):
+    """A top candidate whose parameters disagree with the data yields to the next one that
+    agrees when that explains nearly as much (CONSISTENT_SLACK), not when it explains less."""
+    def fake(problem, chain):
+        name = chain[0][0].name
+        return [(name, name != "delay_mismatch", "")] if "mismatch" in name else []
+
+    class Eff:
+        def __init__(self, name):
+            self.name = name
+
+    monkeypatch.setattr(_diagnose, "consistency", fake)
+    table = _table([("delay_mismatch", 0.99), ("timebase_mismatch", second_shrink),
+                    ("measurement_noise", 0.1)])
+    by_name = {e: Eff(e) for e in table.effect}
+    evals = ["ev_delay", "ev_timebase", "ev_noise"]
+    out, out_evals = _diagnose._consistent_first(None, table, evals, by_name)
+    assert out.iloc[0]["effect"] == first
+    assert out_evals[0] == ("ev_timebase" if first == "timebase_mismatch" else "ev_delay")
+    flags = dict(zip(out.effect, out.consistent))
+    assert flags["delay_mismatch"] is False and flags["timebase_mismatch"] is True
+    assert flags["measurement_noise"] is None  # below MIN_SHRINK: not checked
+    assert second_shrink >= 0.99 - _diagnose.CONSISTENT_SLACK or first == "delay_mismatch"
