@@ -21,10 +21,17 @@ Usage::
     python benchmarks/gap_withheld.py --systems mg,ikeda,eo  # + electro-optic (dt 0.25)
     python benchmarks/gap_withheld.py --systems mg --cases 4 --n 15000
     python benchmarks/gap_withheld.py --runtime-only
+    python benchmarks/gap_withheld.py --systems ikeda --n 6000 \
+        --calibrate measurement_noise:0.2,0.4,0.8 parameter_drift:mu:0.05,0.1,0.2
 
 Strength is drawn as ``u ~ U(0, 1)`` mapped (log-linearly) between the weak
 and strong ends of each effect's range; ``u < 1/3`` is "weak",
-``1/3 <= u < 2/3`` "moderate", ``u >= 2/3`` "strong".  Seeds start at
+``1/3 <= u < 2/3`` "moderate", ``u >= 2/3`` "strong".  Ranges are relative to
+the system: hums by their line power over the signal's continuum (SNR 10 to
+640), and on Ikeda and the electro-optic oscillator the effects whose onset of
+significance lies above the Mackey-Glass ranges by multiples of that onset
+(``ONSET``, measured with ``--calibrate`` on calibration seeds); effects that
+no strength tried made significant there are left out (``EXCLUDED``).  Seeds start at
 ``--seed`` (default 9_000_000) and never coincide with those of the tests.
 """
 
@@ -74,6 +81,98 @@ def _reference_z(system):
 LASER_DRIFT = {"b0": (0.06, 0.4), "r": (0.15, 0.6), "beta": (0.4, 0.9)}
 
 
+#: hums are drawn by their line power over the signal's continuum at their frequency (SNR,
+#: :func:`hum_snr`), not by amplitude: the same 3 % of the std stands 40 times above Mackey-
+#: Glass's continuum at 0.05 cycles per time unit and below the nearly white continuum of
+#: Ikeda sampled at 0.5.  SNR ~10 is the limit below which no test over thousands of bins
+#: can single a line out (the continuum's bins scatter exponentially), so the range starts
+#: there: weak 10-40, moderate 40-160, strong 160-640.  (On Mackey-Glass at 2e4 samples the
+#: earlier amplitude range's "moderate" 1.4-5.4 % of the std gave SNR ~25-120.)
+HUM_SNR = (10.0, 640.0)
+
+#: Per-system "barely detectable" strengths (onsets) for the systems added after the ranges
+#: above were set (Ikeda at step 0.5, the electro-optic oscillator at step 0.25), at 6000
+#: and at 2e4 samples: the geometric mean of the largest strength of a x2 grid whose gap
+#: the sim-vs-sim significance test (no attribution) called significant on neither
+#: calibration record and the smallest one it called significant on both.  Measured with
+#: :func:`calibrate` (``--calibrate``, seeds CALIBRATION_SEED + 1000 j, never the
+#: benchmark's or the tests').  A case is drawn at ``onset * 2 ** (2 u)``: weak 1-1.6x,
+#: moderate 1.6-2.5x, strong 2.5-4x the onset (table of the nearest record length).  The
+#: other effects keep the ranges above: on these systems their onsets lie below those
+#: ranges' weak ends (at 2e4 samples electro-optic timebase 0.005 and delay 0.1 were 2/2,
+#: Ikeda delay 0.3 2/2; quantization, lowpass and clipping were found at every strength of
+#: the 6000-sample run of 23 Nov).  Effect/parameter pairs that stayed below significance
+#: at every strength tried are left out of that system's cases (EXCLUDED, with the evidence):
+#: the data are then indistinguishable from the simulator, "None" is the right answer and
+#: a named effect cannot be.  Units: noise in signal std, drift as a relative change of the
+#: parameter, timebase as |factor - 1|, delay mismatch in time units.
+ONSET = {
+    # at 6000 samples (the benchmark's default length)
+    6000: {
+        "ikeda": {"measurement_noise": 0.28,        # 0.2: 0/2 (0.06, 0.20); 0.4: 2/2 (1.2, 1.2)
+                  ("parameter_drift", "mu"): 0.1,   # 0.05: 0/2; 0.1: 1/2; 0.2: 2/2 (10.8, 6.4)
+                  "outliers": 1.7e-3},              # 1e-3: 0/2 (0.34, 0.59); 3e-3: 2/2
+        "electro_optic": {"measurement_noise": 0.014,  # 0.01: 0/2 (0.08, 0.23); 0.02: 2/2
+                          "dynamical_noise": 0.055,   # 0.03: 0/2 (0.11, 0.48); 0.1: 2/2
+                          ("parameter_drift", "beta"): 0.14},  # 0.1: 0/2 (0.36, 0.45); 0.2: 2/2
+    },
+    # at 2e4 samples
+    20000: {
+        "ikeda": {"measurement_noise": 0.28,        # 0.2: 0/2 (0.25, 0.04); 0.4: 2/2 (3.6, 2.1)
+                  ("parameter_drift", "mu"): 0.07,  # 0.05: -; 0.1: 2/2 (3.2, 3.5)
+                  "outliers": 1.7e-3},              # 1e-3: 1/2 (0.8, 1.5); 3e-3: 2/2
+        "electro_optic": {"measurement_noise": 0.014,  # 0.01: 0/2 (0.52, 0.52); 0.02: 2/2
+                          "dynamical_noise": 0.055,    # 0.03: 0/2 (0.05, 0.18); 0.1: 2/2 (9, 6)
+                          ("parameter_drift", "beta"): 0.071},  # 0.05: 0/2; 0.1: 2/2
+    },
+}
+EXCLUDED = {
+    "ikeda": {"dynamical_noise": "dynamical_noise 0.03-0.3: 0/2 at 2e4 samples (gap/threshold "
+                                 "<= 0.28); 1.0: 1/2 at 2e4, 0/2 at 6000",
+              ("parameter_drift", "x0"): "x0 drift 10-80 %: 0/2 at 2e4 samples (gap/threshold "
+                                         "<= 0.43)",
+              # the gap does not even grow with the factor: at 6000 samples 3 %: 1/2, 6 %: 0/2,
+              # 12 %: 0/2; at 2e4 6 %: 2/2, 12 %: 0/2, 24 %: 2/2 (a nearly white signal whose
+              # time scale barely shows)
+              "timebase_mismatch": "timebase 3-24 %: significant neither consistently nor "
+                                   "more often at larger factors"},
+    "electro_optic": {("parameter_drift", "phi"): "phi drift 5-40 %: 0/2 at 2e4 samples "
+                                                  "(gap/threshold <= 0.54)"},
+}
+#: drifting parameters per system (those not EXCLUDED)
+DRIFT_KEYS = {"ikeda": ["mu"], "electro_optic": ["beta"]}
+
+
+def _onset(system, effect, parameter=None):
+    """The onset for the record length nearest N_RECORD (in log)."""
+    n_ref = min(ONSET, key=lambda m: abs(np.log(m / N_RECORD)))
+    table = ONSET[n_ref].get(getattr(system, "name", ""), {})
+    return table.get((effect, parameter), table.get(effect))
+
+
+def excluded(system, effect):
+    """Reason why ``effect`` is left out of ``system``'s cases (None: it is not)."""
+    table = EXCLUDED.get(getattr(system, "name", ""), {})
+    if effect in table and effect != "parameter_drift":
+        return table[effect]
+    return None
+
+
+_CONTINUUM = {}
+
+
+def _continuum(system, n, sample_dt, frequency):
+    """Mean periodogram of a z-scored reference clean run (seed 1) within +-5 bins of
+    ``frequency`` (the denominator of :func:`hum_snr`)."""
+    key = (repr(system), n, sample_dt)
+    if key not in _CONTINUUM:
+        x = system.simulate(n, sample_dt=sample_dt, random_state=1)
+        _CONTINUUM[key] = np.abs(np.fft.rfft((x - x.mean()) / x.std())) ** 2
+    p = _CONTINUUM[key]
+    k = round(frequency * n * sample_dt)
+    return float(np.mean(p[max(k - 5, 1): k + 6]))
+
+
 def draw_params(system, effect, u, rng):
     """Hidden parameters of ``effect`` at strength ``u`` in [0, 1] for ``system``.
 
@@ -83,6 +182,24 @@ def draw_params(system, effect, u, rng):
     """
     laser = isinstance(system, CO2LaserFeedback)
     tau0 = system.params["tau"]
+    if effect == "parameter_drift" and system.name in DRIFT_KEYS:
+        key = str(rng.choice(DRIFT_KEYS[system.name]))
+        v0 = system.params[key]
+        rel = rng.choice([-1, 1]) * _onset(system, effect, key) * 2 ** (2 * u)
+        return {"parameter": key, "start": v0, "end": float(v0 * (1 + rel))}
+    onset = _onset(system, effect)
+    if onset is not None:
+        s = onset * 2 ** (2 * u)
+        if effect == "measurement_noise":
+            return {"noise": s}
+        if effect == "dynamical_noise":
+            return {"dynamical_noise": s}
+        if effect == "timebase_mismatch":
+            return {"factor": float(1 + rng.choice([-1, 1]) * s)}
+        if effect == "delay_mismatch":
+            return {"tau": float(tau0 + rng.choice([-1, 1]) * s)}
+        if effect == "outliers":
+            return {"rate": s, "size": float(rng.uniform(3.0, 10.0))}
     if effect == "measurement_noise":
         return {"noise": _logmix(0.02, 0.5, u) if laser else _logmix(0.004, 0.2, u)}
     if effect == "dynamical_noise":
@@ -92,8 +209,13 @@ def draw_params(system, effect, u, rng):
     if effect == "periodic_interference":
         # from 3 cycles per record (a mains hum in a fast recording) to 0.95 x Nyquist
         lo, hi = 3.0 / (N_RECORD * SAMPLE_DT[0]), 0.475 / SAMPLE_DT[0]
-        return {"frequency": float(np.exp(rng.uniform(np.log(lo), np.log(hi)))),
-                "amplitude": _logmix(0.01, 0.3, u) if laser else _logmix(0.004, 0.2, u),
+        freq = float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
+        if laser:
+            amp = _logmix(0.01, 0.3, u)
+        else:  # (A n / 2)^2 / continuum = SNR
+            snr = _logmix(*HUM_SNR, u)
+            amp = 2.0 * np.sqrt(snr * _continuum(system, N_RECORD, SAMPLE_DT[0], freq)) / N_RECORD
+        return {"frequency": freq, "amplitude": float(amp),
                 "phase": float(rng.uniform(0, 2 * np.pi))}
     if effect == "lowpass":
         return {"cutoff": _logmix(0.4, 0.03, u) if laser else _logmix(0.3, 0.02, u)}
@@ -189,6 +311,63 @@ def _make_library(system, chain, n, seed, sample_dt):
     for eff, params in sorted(obs, key=lambda item: item[0].stage):
         x = eff.apply(x, params, sample_dt=sample_dt, random_state=seed + 17)
     return np.asarray(x)[:n]
+
+
+#: seeds of the strength calibration (never those of the benchmark, 9_000_000 + 1000 k,
+#: nor of the tests, < 10_000)
+CALIBRATION_SEED = 123_000
+
+
+def calibrate(system, label, sample_dt, n, effect, strengths, n_seeds=2, parameter=None):
+    """Onset of a significant gap: for each strength ``s`` (the effect's main parameter,
+    relative for drifts and timebases), the share of ``n_seeds`` calibration records whose
+    gap the sim-vs-sim test calls significant (:func:`skdelay.gap._diagnose.significance`,
+    no attribution involved).  Used to set a system's "barely detectable" end of a range.
+    """
+    from skdelay.gap._diagnose import significance
+    from skdelay.gap._problem import GapProblem
+
+    global N_RECORD
+    N_RECORD, SAMPLE_DT[0] = n, sample_dt
+    rows = []
+    for s in strengths:
+        hits, gaps = 0, []
+        for j in range(n_seeds):
+            seed = CALIBRATION_SEED + 1000 * j
+            rng = np.random.default_rng(seed)
+            params = _calibration_params(system, effect, s, rng, parameter)
+            real = make_real(system, [(effect, params)], n, seed, sample_dt)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                sig = significance(GapProblem(real, system, sample_dt=sample_dt,
+                                              random_state=seed % 9973))
+            hits += sig["significant"]
+            gaps.append(sig["gap_before"] / sig["threshold"])
+        rows.append({"system": label, "n": n, "effect": effect,
+                     "parameter": parameter or "", "strength": s,
+                     "significant": f"{hits}/{n_seeds}",
+                     "gap/threshold": " ".join(f"{g:.2f}" for g in gaps)})
+        print(pd.DataFrame([rows[-1]]).to_string(index=False, header=len(rows) == 1),
+              flush=True)
+    return rows
+
+
+def _calibration_params(system, effect, s, rng, parameter):
+    if effect == "measurement_noise":
+        return {"noise": s}
+    if effect == "dynamical_noise":
+        return {"dynamical_noise": s}
+    if effect == "outliers":
+        return {"rate": s, "size": 6.0}
+    if effect == "timebase_mismatch":
+        return {"factor": 1.0 + s * rng.choice([-1, 1])}
+    if effect == "delay_mismatch":
+        return {"tau": float(system.params["tau"] + s * rng.choice([-1, 1]))}
+    if effect == "parameter_drift":
+        v0 = system.params[parameter]
+        return {"parameter": parameter, "start": v0,
+                "end": float(v0 * (1 + s * rng.choice([-1, 1])))}
+    raise ValueError(f"no calibration for {effect}")
 
 
 def recovery_error(effect, true, fit, system, sample_dt, n):
@@ -299,6 +478,8 @@ def build_cases(systems, n_cases, n_controls, n_combined, seed, n=15000, n_outsi
     for label, system, dt in systems:
         SAMPLE_DT[0] = dt
         for effect in EFFECT_NAMES:
+            if excluded(system, effect):
+                continue
             for i in range(n_cases):
                 # strengths stratified over the classes, jittered
                 cls_i = i % 3 if strength is None else STRENGTHS.index(strength)
@@ -387,6 +568,10 @@ def main(argv=None):
                     help="draw every single-effect case in this strength class "
                          "(default: case i of an effect in class i % 3)")
     ap.add_argument("--runtime-only", action="store_true")
+    ap.add_argument("--calibrate", nargs="+", metavar="EFFECT[:PARAM]:S1,S2,..",
+                    help="print the onset table (significant share per strength) for the "
+                         "first of --systems at --n, e.g. measurement_noise:0.1,0.2 "
+                         "parameter_drift:mu:0.05,0.1; no benchmark")
     ap.add_argument("--runtime-n", type=int, default=40_000)
     args = ap.parse_args(argv)
     _header(argv)
@@ -399,6 +584,17 @@ def main(argv=None):
                  # a third delay system, sampled at a step of 0.25 (80 samples per delay)
                  "eo": ("electro_optic_dt0.25", ElectroOpticOscillator(), 0.25)}
     chosen = [available[s.strip()] for s in args.systems.split(",")]
+    if args.calibrate:
+        label, system, dt = chosen[0]
+        for spec in args.calibrate:
+            eff, *rest = spec.split(":")
+            calibrate(system, label, dt, args.n, eff, [float(v) for v in rest[-1].split(",")],
+                      parameter=rest[0] if len(rest) > 1 else None)
+        return
+    for label, system, _ in chosen:
+        for key, why in EXCLUDED.get(system.name, {}).items():
+            print(f"# {label}: {key} left out (below significance at every strength "
+                  f"tried: {why})")
 
     print(f"== runtime of one diagnosis on {args.runtime_n} points (hidden hum) ==")
     # wall time on 2 workers, and with one worker the CPU time of the whole diagnosis (a

@@ -52,7 +52,7 @@ def localise(problem, evaluation=None, lacking=None):
             seg = z[a:b]
             k = a + int(np.argmax(np.abs(seg)))
             rows.append({
-                "indicator": "spectrum" if name == "spectral_line" else name,
+                "indicator": "spectrum" if name in ("spectral_line", "band_spectrum") else name,
                 "feature": "spectral line" if name == "spectral_line" else labels[k],
                 "low": float(max(lo[a], 0.0)) if unit == "Hz" else float(lo[a]),
                 "high": float(hi[b - 1]), "peak": _centre(lo[k], hi[k]), "unit": unit,
