@@ -42,7 +42,7 @@ import psutil
 from joblib import Parallel, delayed
 from scipy.spatial import cKDTree
 
-from skdelay import forecast_error_curve, required_lags, two_window_columns
+from skdelay import forecast_error_curve, locate_dips, required_lags, two_window_columns
 from skdelay.systems import MackeyGlass, measure
 
 RIDGE = 1e-3
@@ -182,7 +182,15 @@ def part_a(args):
     default, t_def, mem_def, cpu_def = timed(forecast_error_curve, s, tau=taus,
                                              n_queries=args.queries, **common)
     w = int(default.attrs["theiler_window"])
-    print(f"project default: {t_def:.1f} s wall, {cpu_def:.1f} s CPU", flush=True)
+    print(f"project default: {t_def:.1f} s wall, {cpu_def:.1f} s CPU, "
+          f"{mem_def:.2f} GB peak; load average after {load()}", flush=True)
+    if args.default_only:
+        print(locate_dips(default)[["delay", "delay_error", "centre_se", "tau_best", "z",
+                                    "significant"]].round(3).to_string())
+        print(f"provably exact neighbourhoods (per m): "
+              f"{ {k: round(v, 4) for k, v in default.attrs['exact_fraction'].items()} }; "
+              f"refined cells: {int((~default.attrs['coarse']).sum().sum())}")
+        return
     full, t_full, _, cpu_full = timed(forecast_error_curve, s, tau=taus, refine=False,
                                       **common)
     print(f"project full precision (all {taus.size} taus): {t_full:.1f} s wall", flush=True)
@@ -194,8 +202,6 @@ def part_a(args):
     rel_full = np.abs(full.loc[sub].to_numpy() / base - 1)
     rel_def = np.abs(default.loc[sub].to_numpy() / base - 1)
     refined = ~default.attrs["coarse"].loc[sub].to_numpy()
-    from skdelay import locate_dips
-
     dips = locate_dips(default)
     print()
     print(f"(a) N = {s.size}, m = 2..5, tau = 1..200 (800 cells), k = {K}, Theiler {w}, "
@@ -312,6 +318,8 @@ def main():
     parser.add_argument("--queries", type=int, default=10_000)
     parser.add_argument("--baseline-taus", type=int, default=6)
     parser.add_argument("--n-jobs", type=int, default=2)
+    parser.add_argument("--default-only", action="store_true",
+                        help="(a) time only the default scan (no full-precision or baseline rows)")
     parser.add_argument("--check-m", dest="check_ms", type=int, nargs="*", default=[],
                         help="(b) m values checked against a full-precision dip scan")
     parser.add_argument("--check-reach", type=int, default=10,

@@ -155,7 +155,7 @@ def forecast_error_curve(series, m=(2, 3, 4, 5), tau=range(1, 101), *, n_neighbo
         neighbours, ``attrs["exact_fraction"]`` says how often it is provably
         exact); "auto" uses "tree" wherever a cell has at least one query per
         ten database rows (every cell of a full-precision scan, refined
-        cells) and "candidates" elsewhere; "exact" rebuilds a plain k-d tree
+        cells) and "candidates" elsewhere (a coarse pass with few queries); "exact" rebuilds a plain k-d tree
         on the 2m-dimensional vectors per ``(m, tau)`` (the reference).
     n_candidates : int, default=None
         Candidates per window and query for ``search="candidates"`` (default
