@@ -321,11 +321,10 @@ CALIBRATION_SEED = 123_000
 def calibrate(system, label, sample_dt, n, effect, strengths, n_seeds=2, parameter=None):
     """Onset of a significant gap: for each strength ``s`` (the effect's main parameter,
     relative for drifts and timebases), the share of ``n_seeds`` calibration records whose
-    gap the sim-vs-sim test calls significant (:func:`skdelay.gap._diagnose.significance`,
-    no attribution involved).  Used to set a system's "barely detectable" end of a range.
+    gap the sim-vs-sim test calls significant (``GapReport.significance``, read off a
+    diagnosis with one cheap candidate, not cross-validated: the attribution is not used).
+    Used to set a system's "barely detectable" end of a range.
     """
-    from skdelay.gap._diagnose import significance
-    from skdelay.gap._problem import GapProblem
 
     global N_RECORD
     N_RECORD, SAMPLE_DT[0] = n, sample_dt
@@ -339,8 +338,10 @@ def calibrate(system, label, sample_dt, n, effect, strengths, n_seeds=2, paramet
             real = make_real(system, [(effect, params)], n, seed, sample_dt)
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                sig = significance(GapProblem(real, system, sample_dt=sample_dt,
-                                              random_state=seed % 9973))
+                sig = diagnose_gap(real, system, sample_dt=sample_dt,
+                                   effects=["measurement_noise"], combine=False,
+                                   cross_validated=False,
+                                   random_state=seed % 9973).significance
             hits += sig["significant"]
             gaps.append(sig["gap_before"] / sig["threshold"])
         rows.append({"system": label, "n": n, "effect": effect,

@@ -89,10 +89,10 @@ def main(argv=None):
     starts = np.sort(rng.choice(np.arange(ntr + 2000, s0.size - max(HORIZONS) - 1),
                                 args.runs, replace=False))
     ex = laser_exact_spectrum(args.delay)
-    lines = [f"# {time.strftime('%Y-%m-%d %H:%M')} UTC, load {os.getloadavg()[0]:.1f}; "
-             + " ".join(["python", *sys.argv]),
-             f"exact N+={ex.n_positive} lmax={1e3 * ex.exponents[0]:.2f} "
-             f"DKY={ex.kaplan_yorke_dimension:.2f} hKS={1e3 * ex.ks_entropy:.2f}"]
+    lines = [(f"# {time.strftime('%Y-%m-%d %H:%M')} UTC, load {os.getloadavg()[0]:.1f}; "
+              + " ".join(["python", *sys.argv])),
+             (f"exact N+={ex.n_positive} lmax={1e3 * ex.exponents[0]:.2f} "
+              f"DKY={ex.kaplan_yorke_dimension:.2f} hKS={1e3 * ex.ks_entropy:.2f}")]
     print("\n".join(lines), flush=True)
     for entry in args.grid.split(";"):
         step, m, k, ridge = entry.split(",")

@@ -334,19 +334,19 @@ def select_spectrum_model(series, delay, *, steps=STEP_GRID, spans=SPAN_GRID,
     """
     s = check_series(series, name="series", min_length=200)
     delay = check_positive_int(delay, name="delay")
-    horizon = (int(round(HORIZON_DELAYS * delay)) if horizon is None
+    horizon = (round(HORIZON_DELAYS * delay) if horizon is None
                else check_positive_int(horizon, name="horizon"))
     period = dominant_period(s, max(2 * delay, 50))
     unit = period if period is not None else max(1, delay // 2)
     scale = float(s.std())
     rows, best, best_score = [], None, -np.inf
     for h in sorted({check_positive_int(v, name="step") for v in steps}):
-        tau_h = max(1, int(round(delay / h)))
-        ms = sorted({min(max_window, max(2, int(round(w * unit / h)))) for w in spans})
+        tau_h = max(1, round(delay / h))
+        ms = sorted({min(max_window, max(2, round(w * unit / h))) for w in spans})
         s_h = s[::h]
         n_lags = max(required_lags(mm, tau_h) for mm in ms)
         # free-run steps of the scored horizons (at least one model step each)
-        st = sorted({max(1, int(round(f * horizon / h))) for f in HORIZON_FRACTIONS})
+        st = sorted({max(1, round(f * horizon / h)) for f in HORIZON_FRACTIONS})
         if s_h.size < 4 * (n_lags + st[-1]) + 100:
             continue
         X, y = lagged_windows(s_h, n_lags)
