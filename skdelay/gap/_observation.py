@@ -332,10 +332,7 @@ class Outliers(Effect):
     def guess(self, real, sim, sample_dt):
         found = spikes(real, sim, details=True)
         rate, size, cut = found["rate"], found["size"], found["cut"]
-        detected = rate * len(real) >= 4
-        if detected:
-            rate, size = self.unbiased(rate, size, cut, found["upper"])
-        elif rate == 0:
+        if rate == 0:
             # no sample stands out: only spikes too small to be seen are consistent
             largest = cut / 1.5
             if largest < self.bounds["size"][0]:
@@ -344,11 +341,12 @@ class Outliers(Effect):
                     "its neighbours), so outliers cannot explain the gap."
                 )
             return {"rate": 1e-3, "size": largest, "detected": False, "unseen": True}
-        else:
-            rate, size = 1e-3, 4.0
+        # every height (size * U(0.5, 1.5)) clears the threshold (see search_bounds)
+        measured = bool(cut < 0.5 * size)
+        rate, size = self.unbiased(rate, size, cut, found["upper"])
         return {"rate": _clamp(rate, self.bounds["rate"]),
                 "size": _clamp(size, self.bounds["size"]),
-                "detected": detected}
+                "detected": True, "measured": measured}
 
     @staticmethod
     def unbiased(rate, median_height, cut, upper):
@@ -370,6 +368,19 @@ class Outliers(Effect):
 
     def search_bounds(self, guess, context):
         r, s = guess["rate"], guess["size"]
+        if guess.get("measured"):
+            # Spikes are measured, not fitted: every detected spike counts (rate = count
+            # / n; the threshold lies above 1.25 x the largest deviation the clean
+            # simulations show) and, when every height clears the threshold, their
+            # median is the size.  A search cannot do better: each evaluation draws new
+            # spikes, so it matches the real record's particular heights with the
+            # simulation's particular draws.  On the electro-optic oscillator (6000
+            # samples, 9 realised spikes, median height 9.59 std) the median measured
+            # 9.52 and the search moved it to 12.4; in the withheld-effect benchmark the
+            # searched sizes were 35 % (Ikeda) and 23 % (electro-optic) off the realised
+            # medians, and a 3-spike Mackey-Glass record (below the former minimum of 4
+            # counted spikes) was searched from a default guess to 2.6 x its rate.
+            return {}
         if guess.get("unseen"):  # spikes below the detection threshold only
             return {"rate": (1e-5, 0.1), "size": (self.bounds["size"][0], s)}
         if guess.get("detected"):  # counted spikes: keep the count, refine the height
