@@ -24,7 +24,7 @@ from numba import njit
 from ._checks import check_positive_int, check_random_state, check_series
 from ._kdtree import build_tree, query_knn
 from ._model import resolve_model
-from ._neighbours import RADIUS_CAP, Standardiser, fit_neighbourhood
+from ._neighbours import RADIUS_CAP, Standardiser, fit_neighbourhood, fit_scratch
 
 __all__ = ["ModelEscapeError", "ModelEscapeWarning", "OffSupportWarning", "Trajectory",
            "iterate", "off_support_fraction", "progress_bar", "progress_bars", "run_model",
@@ -107,9 +107,7 @@ def _run(buf, n_hist, n_steps, lags, data, targets, tree, k, k_query, radius2, r
     nb_x = np.empty((k_query, nf))
     nb_y = np.empty(k_query)
     nb_w = np.zeros(k_query)
-    mu = np.empty(nf)
-    g = np.empty((nf, nf))
-    rhs = np.empty(nf)
+    mu, g, rhs = fit_scratch(nf)
     grad = np.empty(nf)
     n_clipped = 0
     for t in range(n_steps):

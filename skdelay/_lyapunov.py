@@ -29,7 +29,7 @@ from ._iterate import (
     support_guard,
 )
 from ._model import resolve_model, self_query_index
-from ._neighbours import fit_neighbourhood
+from ._neighbours import fit_neighbourhood, fit_scratch
 from ._spectrum import LyapunovSpectrum
 from ._tangent import exponents_from_logs, tangent_qr
 from ._windows import lagged_windows
@@ -366,9 +366,7 @@ def _fit_rows(data, targets, V, pos, qidx, lo, k, theiler, ridge, out):
     nb_x = np.zeros((k, p))
     nb_y = np.zeros(k)
     nb_w = np.zeros(k)
-    mu = np.empty(p)
-    g = np.empty((p, p))
-    rhs = np.empty(p)
+    mu, g, rhs = fit_scratch(p)
     for i in range(pos.shape[0]):
         row_q = lo + i
         used = 0

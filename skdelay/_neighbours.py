@@ -144,6 +144,20 @@ def ridge_solve(G, rhs, ridge, a_out):
 
 
 @njit(cache=True)
+def fit_scratch(p):
+    """``(mu, G, rhs)``: the scratch arrays of :func:`fit_neighbourhood` for ``p`` features."""
+    return np.empty(p), np.empty((p, p)), np.empty(p)
+
+
+@njit(cache=True)
+def neighbourhood_buffers(k, p):
+    """``(Vn, yn, w, vq, mu, G, rhs, a)``: one neighbourhood of ``k`` rows of ``p`` features,
+    its query, the scratch of :func:`fit_neighbourhood` and its gradient output."""
+    mu, G, rhs = fit_scratch(p)
+    return np.empty((k, p)), np.empty(k), np.empty(k), np.empty(p), mu, G, rhs, np.empty(p)
+
+
+@njit(cache=True)
 def fit_neighbourhood(Vn, yn, w, vq, ridge, order, fallback, mu, G, rhs, a_out):
     """One local affine fit and its forecast at ``vq``.
 
@@ -179,9 +193,7 @@ def fit_gathered(Vq, Vn, yn, w, ridge, order, fallback):
     A = np.zeros((n, p))
     b = np.empty(n)
     pred = np.empty(n)
-    mu = np.empty(p)
-    G = np.empty((p, p))
-    rhs = np.empty(p)
+    mu, G, rhs = fit_scratch(p)
     for i in range(n):
         b[i], pred[i] = fit_neighbourhood(Vn[i], yn[i], w[i], Vq[i], ridge, order, fallback,
                                           mu, G, rhs, A[i])
@@ -200,14 +212,7 @@ def fit_from_series(s, q_t, nb_t, weight, cols, ridge, order, fallback):
     n, k = nb_t.shape
     p = cols.size
     pred = np.empty(n)
-    Vn = np.empty((k, p))
-    yn = np.empty(k)
-    w = np.empty(k)
-    vq = np.empty(p)
-    mu = np.empty(p)
-    G = np.empty((p, p))
-    rhs = np.empty(p)
-    a = np.empty(p)
+    Vn, yn, w, vq, mu, G, rhs, a = neighbourhood_buffers(k, p)
     for i in range(n):
         for f in range(p):
             vq[f] = s[q_t[i] - cols[f]]

@@ -91,6 +91,7 @@ from skdelay._neighbours import (
     chunk_slices,
     fit_from_series,
     fit_neighbourhood,
+    neighbourhood_buffers,
     tree_neighbours,
 )
 
@@ -420,14 +421,7 @@ def scan_cells(s, q_t, lists, rk2, row_of, u_min, starts, m, k, radius2, width, 
         size *= 2
     table = np.full(size, -1, dtype=np.int64)
     touched = np.empty(2 * kk, dtype=np.int64)
-    Vn = np.empty((width, p))
-    yn = np.empty(width)
-    w = np.empty(width)
-    vq = np.empty(p)
-    mu = np.empty(p)
-    G = np.empty((p, p))
-    rhs = np.empty(p)
-    a = np.empty(p)
+    Vn, yn, w, vq, mu, G, rhs, a = neighbourhood_buffers(width, p)
     n_max = is_db.size
     for i in range(n_q):
         q = q_t[i]
@@ -603,14 +597,7 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
     stack = np.empty(256, dtype=np.int64)
     stack_d = np.empty(256)
     width = 2 * m
-    Vn = np.empty((k, width))
-    yn = np.empty(k)
-    w = np.empty(k)
-    vq = np.empty(width)
-    mu = np.empty(width)
-    G = np.empty((width, width))
-    rhs = np.empty(width)
-    a = np.empty(width)
+    Vn, yn, w, vq, mu, G, rhs, a = neighbourhood_buffers(k, width)
     for it in range(n_tau):
         c = starts[it]
         for r in range(n_db):
