@@ -16,30 +16,37 @@ LEAF_SIZE = 12
 
 
 @njit(cache=True, nogil=True)
-def _select(data, perm, lo, hi, mid, dim):
-    """Reorder ``perm[lo:hi]`` so that ``perm[mid]`` holds the row of the ``mid``-th smallest
-    ``data[:, dim]`` with no larger value before it and no smaller one after it
-    (quickselect, Hoare partition: linear time, where a sort per node made the build
-    ``O(n log^2 n)``)."""
+def select_kth(keys, items, lo, hi, k):
+    """Reorder ``keys[lo:hi]`` so that ``keys[k]`` holds their ``k``-th smallest value, with
+    no larger one before it and no smaller one after it; ``items`` (when not empty) is
+    reordered alongside.  Returns ``keys[k]``.
+
+    Quickselect with a Hoare partition: linear time (a sort per k-d tree node made the
+    build ``O(n log^2 n)``).
+    """
+    carry = items.size > 0
     left, right = lo, hi - 1
     while left < right:
-        pivot = data[perm[(left + right) // 2], dim]
+        pivot = keys[(left + right) // 2]
         i, j = left, right
         while i <= j:
-            while data[perm[i], dim] < pivot:
+            while keys[i] < pivot:
                 i += 1
-            while data[perm[j], dim] > pivot:
+            while keys[j] > pivot:
                 j -= 1
             if i <= j:
-                perm[i], perm[j] = perm[j], perm[i]
+                keys[i], keys[j] = keys[j], keys[i]
+                if carry:
+                    items[i], items[j] = items[j], items[i]
                 i += 1
                 j -= 1
-        if mid <= j:
+        if k <= j:
             right = j
-        elif mid >= i:
+        elif k >= i:
             left = i
         else:
             break
+    return keys[k]
 
 
 @njit(cache=True, nogil=True)
@@ -51,6 +58,7 @@ def build_tree(data, leaf_size=LEAF_SIZE):
     n, d = data.shape
     max_nodes = 2 * (n // max(leaf_size // 2, 1)) + 3
     perm = np.arange(n)
+    keys = np.empty(n)  # the split coordinate of perm's rows, reordered with perm
     start = np.zeros(max_nodes, dtype=np.int64)
     stop = np.zeros(max_nodes, dtype=np.int64)
     left = -np.ones(max_nodes, dtype=np.int64)
@@ -87,7 +95,9 @@ def build_tree(data, leaf_size=LEAF_SIZE):
         if widest <= 0.0:
             continue  # all points identical: keep as a (large) leaf
         mid = (lo + hi) // 2
-        _select(data, perm, lo, hi, mid, dim)
+        for p in range(lo, hi):
+            keys[p] = data[perm[p], dim]
+        select_kth(keys, perm, lo, hi, mid)
         for child, a, b in ((n_nodes, lo, mid), (n_nodes + 1, mid, hi)):
             start[child], stop[child] = a, b
             stack[sp] = child

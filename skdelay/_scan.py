@@ -85,7 +85,7 @@ from scipy.spatial import cKDTree
 from skdelay._checks import check_positive_int, check_random_state
 from skdelay._dips import locate_dips
 from skdelay._embedding import second_window_start, two_window_columns
-from skdelay._kdtree import build_tree, window_knn_lists
+from skdelay._kdtree import build_tree, select_kth, window_knn_lists
 from skdelay._neighbours import (
     RADIUS_CAP,
     chunk_slices,
@@ -347,31 +347,6 @@ class ScanResult:
 
 
 # ----------------------------------------------------------------------------- kernels
-@njit(cache=True)
-def _kth_smallest(a, k):
-    """k-th smallest (0-based) value of ``a``, reordering ``a`` in place (quickselect)."""
-    lo, hi = 0, a.size - 1
-    while lo < hi:
-        pivot = a[(lo + hi) // 2]
-        i, j = lo, hi
-        while i <= j:
-            while a[i] < pivot:
-                i += 1
-            while a[j] > pivot:
-                j -= 1
-            if i <= j:
-                a[i], a[j] = a[j], a[i]
-                i += 1
-                j -= 1
-        if k <= j:
-            hi = j
-        elif k >= i:
-            lo = i
-        else:
-            break
-    return a[k]
-
-
 @njit(cache=True, inline="always")
 def _slot(table, j):
     """Slot of ``j`` in an open-addressing hash set (its own, or the empty one to fill).
@@ -416,6 +391,7 @@ def scan_cells(s, q_t, lists, rk2, row_of, u_min, starts, m, k, radius2, width, 
     cand = np.empty(2 * kk, dtype=np.int64)
     dist = np.empty(2 * kk)
     scratch = np.empty(2 * kk)
+    no_items = np.empty(0, dtype=np.int64)  # select_kth reorders the distances only
     size = 1
     while size < 4 * kk:  # load factor <= 1/2 keeps linear probing short
         size *= 2
@@ -492,7 +468,7 @@ def scan_cells(s, q_t, lists, rk2, row_of, u_min, starts, m, k, radius2, width, 
                 pred = fallback
             else:
                 scratch[:nc] = dist[:nc]
-                reach = max(_kth_smallest(scratch[:nc], min(k, nc) - 1), radius2)
+                reach = max(select_kth(scratch, no_items, 0, nc, min(k, nc) - 1), radius2)
                 if reach <= rk2[r1] + rk2[r2]:
                     n_exact[it] += 1
                 used = 0
