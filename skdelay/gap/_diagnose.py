@@ -510,7 +510,7 @@ def _better_first(problem, table, evaluations, by_name, second, second_evals, pa
 
 def diagnose_gap(real, simulator, *, sample_dt=1.0, effects=None, random_state=None,
                  n_jobs=None, n_sims=6, combine=True, verbose=0, time_unit=None,
-                 cross_validated=True):
+                 cross_validated=True, progress=None):
     """Diagnose the gap between measured data and a simulator.
 
     (1) *Where*: indicators (power spectrum, histogram, autocorrelation,
@@ -563,6 +563,11 @@ def diagnose_gap(real, simulator, *, sample_dt=1.0, effects=None, random_state=N
     time_unit : {None, "s", "ms", "us", "ns", ...}, default=None
         The simulator's time unit (same as a unit given with ``sample_dt``);
         None: unknown, frequencies in cycles per time unit.
+    progress : bool or None, default=None
+        Show a tqdm progress bar with ETA on stderr over the stages (simulator
+        runs, candidate fits, cross-validation, second round), one step per
+        candidate fit; None: only inside :func:`skdelay._iterate.progress_bars`
+        (``skdelay gap`` shows it unless ``--quiet``); False: never.
 
     Returns
     -------
@@ -598,17 +603,93 @@ def diagnose_gap(real, simulator, *, sample_dt=1.0, effects=None, random_state=N
         return _diagnose(real, simulator, sample_dt=sample_dt, effects=effects,
                          random_state=random_state, n_jobs=n_jobs, n_sims=n_sims,
                          combine=combine, verbose=verbose, time_unit=time_unit,
-                         cross_validated=cross_validated)
+                         cross_validated=cross_validated, progress=progress)
+
+
+class _Stages:
+    """The candidate fits of a diagnosis, run through joblib, counted on a progress bar.
+
+    Called like a ``joblib.Parallel`` (a list of results back).  The bar's total is
+    planned per stage (``plan``: ``(name, fits)`` in the order they run); :meth:`start`
+    takes what earlier stages did not use (skipped, or fewer candidates worth it) off the
+    total, and a stage with more fits than planned (the pair check) extends it.
+    """
+
+    def __init__(self, bar, plan, n_jobs, verbose):
+        self.bar, self.plan = bar, list(plan)
+        self.live = getattr(bar, "total", None) is not None  # a real bar (not switched off)
+        self.n_jobs, self.verbose = n_jobs, verbose
+        self.parallel = Parallel(n_jobs=n_jobs, verbose=verbose)
+        self.bar.total = sum(units for _, units in self.plan)
+        self.left = 0
+        self._lazy = None
+
+    def start(self, name):
+        drop, names = self.left, [n for n, _ in self.plan]
+        self.left = 0
+        if name in names:
+            k = names.index(name)
+            drop += sum(units for _, units in self.plan[:k])
+            self.left = self.plan[k][1]
+            self.plan = self.plan[k + 1:]
+        if drop:
+            self.bar.total -= drop
+        self.bar.set_postfix_str(name)
+
+    def step(self, n=1):
+        self.bar.update(n)
+        self.left = max(self.left - n, 0)
+
+    def finish(self):
+        if self.live:
+            self.bar.total = self.bar.n
+            self.bar.refresh()
+
+    def __call__(self, jobs):
+        jobs = list(jobs)
+        if len(jobs) > self.left:
+            self.bar.total += len(jobs) - self.left
+            self.left = len(jobs)
+        if not self.live:
+            out = self.parallel(jobs)
+            self.step(len(jobs))
+            return out
+        if self._lazy is None:  # results as they finish, in order: the bar moves per fit
+            self._lazy = Parallel(n_jobs=self.n_jobs, verbose=self.verbose,
+                                  return_as="generator")
+        out = []
+        for res in self._lazy(jobs):
+            out.append(res)
+            self.step()
+        return out
 
 
 def _diagnose(real, simulator, *, sample_dt, effects, random_state, n_jobs, n_sims, combine,
-              verbose, time_unit, cross_validated):
+              verbose, time_unit, cross_validated, progress):
+    from .._iterate import progress_bar
+
     real = check_series(real, name="real", min_length=MIN_SAMPLES)
     sample_dt, time_unit = parse_sample_dt(sample_dt, time_unit)
     params = _check_simulator(simulator)
     _check_length(real.size, params, sample_dt)
     n_sims = check_positive_int(n_sims, name="n_sims", minimum=3)
     candidates = resolve_effects(effects)
+    n = len(candidates)
+    plan = [("simulator runs", 1), ("candidate fits", n), ("cross-validation", n)]
+    if combine and n > 1:
+        plan += [("second round", n - 1), ("second cross-validation", n - 1)]
+    with progress_bar(sum(units for _, units in plan), "gap diagnosis", progress,
+                      unit="fit") as bar:
+        stages = _Stages(bar, plan, n_jobs, verbose)
+        report = _run(real, simulator, sample_dt, candidates, random_state, n_jobs, n_sims,
+                      combine, time_unit, cross_validated, stages)
+        stages.finish()
+    return report
+
+
+def _run(real, simulator, sample_dt, candidates, random_state, n_jobs, n_sims, combine,
+         time_unit, cross_validated, parallel):
+    parallel.start("simulator runs")
     try:
         problem = GapProblem(real, simulator, sample_dt=sample_dt, n_sims=n_sims,
                              random_state=random_state, n_jobs=n_jobs, time_unit=time_unit)
@@ -619,7 +700,8 @@ def _diagnose(real, simulator, *, sample_dt, effects, random_state, n_jobs, n_si
     where = localise(problem)
     sig = significance(problem)
     gap_before = problem.before.gap
-    parallel = Parallel(n_jobs=n_jobs, verbose=verbose)
+    parallel.step()
+    parallel.start("candidate fits")
     results = parallel(delayed(fit_effect)(e, problem) for e in candidates)
     by_name = {e.name: e for e in candidates}
     parts = problem.split() if (cross_validated and real.size >= MIN_CV_SAMPLES) else None
@@ -628,6 +710,7 @@ def _diagnose(real, simulator, *, sample_dt, effects, random_state, n_jobs, n_si
         worth = _worth_cv(results, gap_before)
         ok = [by_name[r.effect] for r in results if r.effect in worth]
         pin_choices(parts, results)
+        parallel.start("cross-validation")
         cv = cross_validate(ok, parts, parallel) if ok else None
     table, evaluations = _table(results, gap_before, problem, by_name, cv)
     if sig["significant"]:
@@ -642,8 +725,10 @@ def _diagnose(real, simulator, *, sample_dt, effects, random_state, n_jobs, n_si
     second = None
     if best is not None and combine and len(candidates) > 1 and _residual_left(
             problem, after, sig["threshold"], gap_before):
+        parallel.start("second round")
         second, second_evals, cv2 = _second_round(problem, candidates, by_name, chain, after,
                                                   parallel, cv, parts)
+        parallel.start("pair check")
         swap = (_better_first(problem, table, evaluations, by_name, second, second_evals,
                               parallel) if second is not None else None)
         if swap is not None:  # round 1's runner-up pairs better with the second effect
@@ -656,6 +741,7 @@ def _diagnose(real, simulator, *, sample_dt, effects, random_state, n_jobs, n_si
             after = evaluations[0]
             second = None
             if _residual_left(problem, after, sig["threshold"], gap_before):
+                parallel.start("second round")
                 second, second_evals, cv2 = _second_round(problem, candidates, by_name,
                                                           chain, after, parallel, cv, parts)
         if second is not None:
@@ -667,6 +753,7 @@ def _diagnose(real, simulator, *, sample_dt, effects, random_state, n_jobs, n_si
                         "shrink": float(total), "table": second}
             chain = chain + [(by_name[s["effect"]], dict(s["params"]))]
             after = second_evals[0]
+    parallel.start("checks")
     lacking = problem.lacking_dips(chain)
     status, reasons = explanation(problem, sig, best, chain, after, lacking)
     if best is not None and cv is not None:
