@@ -422,6 +422,7 @@ def _table(results, gap_before, problem, by_name, cv=None):
 def _second_round(problem, candidates, by_name, chain, after, parallel, cv, parts):
     """Fit the candidates on top of ``chain`` (the best effect); ``(table, evaluations,
     cross_validated)`` with the chosen second effect first, or ``(None, None, False)``.
+    ``parallel``: the diagnosis' :class:`_Stages`.
 
     Led by the indicators that remain off: a localised leftover (a line, a clipped end)
     is handed to the effects that leave their mark there; a broadband best effect
@@ -442,6 +443,7 @@ def _second_round(problem, candidates, by_name, chain, after, parallel, cv, part
         worth = _worth_cv(more, after.gap)
         ok = [by_name[r.effect] for r in more if r.effect in worth]
         pin_choices(parts, more)
+        parallel.start("second cross-validation")
         cv2 = cross_validate(ok, parts, parallel, [(by_name[best], best_on_half)]) \
             if (ok and best_on_half) else None
     second, second_evals = _table(more, after.gap, problem, by_name, cv2)
@@ -678,6 +680,7 @@ def _diagnose(real, simulator, *, sample_dt, effects, random_state, n_jobs, n_si
     plan = [("simulator runs", 1), ("candidate fits", n), ("cross-validation", n)]
     if combine and n > 1:
         plan += [("second round", n - 1), ("second cross-validation", n - 1)]
+    plan.append(("checks", 0))  # whatever was not run comes off the total here
     with progress_bar(sum(units for _, units in plan), "gap diagnosis", progress,
                       unit="fit") as bar:
         stages = _Stages(bar, plan, n_jobs, verbose)
