@@ -649,10 +649,11 @@ def main(argv=None):
         error=("error", "median"), shrink=("shrink", "median"), seconds=("seconds", "median"))
     print(table.to_string(float_format=lambda v: f"{v:.2f}"))
 
-    print("\n-- every single-effect case --")
-    print(single[["system", "true", "strength", "found", "true_params", "fit_params", "error",
-                  "shrink", "gap_before"]].to_string(index=False,
-                                                     float_format=lambda v: f"{v:.3g}"))
+    if len(single):  # (--only may leave none)
+        print("\n-- every single-effect case --")
+        print(single[["system", "true", "strength", "found", "true_params", "fit_params",
+                      "error", "shrink", "gap_before"]].to_string(
+                          index=False, float_format=lambda v: f"{v:.3g}"))
 
     comb = df[df.true.str.contains(r"\+")]
     if len(comb):

@@ -469,12 +469,13 @@ def _second_round(problem, candidates, by_name, chain, after, parallel, cv, part
 #: of it).  Near-equivalent explanations of one discrepancy differ by ~0.06 in
 #: cross-validated shrink (:data:`CONSISTENT_SLACK`).
 PAIR_SLACK = 0.1
-#: On Mackey-Glass (6000 samples, development seeds) the true first cause's pair left 55x
-#: (noise + hum at 0.014: gap 0.77, nothing off, vs 42.3 with dynamical noise, spectrum and
-#: line still off) and 120x (hum at 0.2: 0.55 vs 67) less than the other noise type's pair;
-#: with dynamical noise as the true cause (+ hum at 0.2) its pair left 2.6x less (15.2 vs
-#: 39.4).  On the electro-optic oscillator (step 0.25) noise + hum paired with either noise
-#: type left 0.35-0.53 with nothing off: no pair decides there, and none is swapped.
+#: On Mackey-Glass (6000 samples: the benchmark's noise + hum record, seed 9012000, and the
+#: same run with other causes) the true first cause's pair left 55x (noise + hum at 0.014:
+#: gap 0.77, nothing off, vs 42.3 with dynamical noise, spectrum and line still off) and
+#: 120x (hum at 0.2: 0.55 vs 67) less than the other noise type's pair; with dynamical noise
+#: as the true cause (+ hum at 0.2) its pair left 2.6x less (15.2 vs 39.4).  On the
+#: electro-optic oscillator (step 0.25, the benchmark's noise + hum record) the hum paired
+#: with either noise type left 0.35-0.53 with nothing off: no pair decides, none is swapped.
 PAIR_RATIO = 0.5
 #: the runners-up are paired with the best PAIR_TOP second effects of round 2: the second
 #: cause need not head it (Mackey-Glass, 4000 samples, noise 0.035 + a 0.35-std hum at
