@@ -574,6 +574,13 @@ def main(argv=None):
                          "first of --systems at --n, e.g. measurement_noise:0.1,0.2 "
                          "parameter_drift:mu:0.05,0.1; no benchmark")
     ap.add_argument("--runtime-n", type=int, default=40_000)
+    ap.add_argument("--only", metavar="TRUE[,TRUE]",
+                    help="run only the cases whose hidden cause is one of these labels "
+                         "(e.g. measurement_noise,measurement_noise+periodic_interference); "
+                         "the cases are drawn as without it, so seeds and strengths match "
+                         "a full run with the same arguments")
+    ap.add_argument("--skip-runtime", action="store_true",
+                    help="leave out the runtime of one diagnosis on --runtime-n points")
     args = ap.parse_args(argv)
     _header(argv)
     pd.set_option("display.width", 200)
@@ -597,18 +604,24 @@ def main(argv=None):
             print(f"# {label}: {key} left out (below significance at every strength "
                   f"tried: {why})")
 
-    print(f"== runtime of one diagnosis on {args.runtime_n} points (hidden hum) ==")
-    # wall time on 2 workers, and with one worker the CPU time of the whole diagnosis (a
-    # loky worker's CPU is not this process's); the first system only unless --runtime-only
-    rows = [runtime(system, label, args.runtime_n, dt, nj)
-            for label, system, dt in (chosen if args.runtime_only else chosen[:1])
-            for nj in (2, 1)]
-    print(pd.DataFrame(rows).to_string(index=False, float_format=lambda v: f"{v:.1f}"))
+    if not args.skip_runtime:
+        print(f"== runtime of one diagnosis on {args.runtime_n} points (hidden hum) ==")
+        # wall time on 2 workers, and with one worker the CPU time of the whole diagnosis (a
+        # loky worker's CPU is not this process's); the first system only unless --runtime-only
+        rows = [runtime(system, label, args.runtime_n, dt, nj)
+                for label, system, dt in (chosen if args.runtime_only else chosen[:1])
+                for nj in (2, 1)]
+        print(pd.DataFrame(rows).to_string(index=False, float_format=lambda v: f"{v:.1f}"))
     if args.runtime_only:
         return
 
     cases = build_cases(chosen, args.cases, args.controls, args.combined, args.seed, args.n,
                         args.outside, args.strength)
+    if args.only:
+        keep = {t.strip() for t in args.only.split(",") if t.strip()}
+        cases = [c for c in cases if c["true"] in keep]
+        if not cases:
+            ap.error(f"--only {args.only}: no case has one of these hidden causes")
     dt = {label: d for label, _, d in chosen}
     t0 = time.perf_counter()
     results = []
@@ -636,10 +649,11 @@ def main(argv=None):
         error=("error", "median"), shrink=("shrink", "median"), seconds=("seconds", "median"))
     print(table.to_string(float_format=lambda v: f"{v:.2f}"))
 
-    print("\n-- every single-effect case --")
-    print(single[["system", "true", "strength", "found", "true_params", "fit_params", "error",
-                  "shrink", "gap_before"]].to_string(index=False,
-                                                     float_format=lambda v: f"{v:.3g}"))
+    if len(single):  # (--only may leave none)
+        print("\n-- every single-effect case --")
+        print(single[["system", "true", "strength", "found", "true_params", "fit_params",
+                      "error", "shrink", "gap_before"]].to_string(
+                          index=False, float_format=lambda v: f"{v:.3g}"))
 
     comb = df[df.true.str.contains(r"\+")]
     if len(comb):

@@ -439,9 +439,10 @@ def _prepare_gap(args):
         say = _progress(args)
         say(f"diagnosing the gap between {args.real} and {system!r}")
         try:
+            # a tqdm bar with ETA over the candidate fits (joblib's own lines would break it)
             report = diagnose_gap(real.to_numpy(), system, sample_dt=args.dt, effects=effects,
                                   random_state=args.seed, n_jobs=args.n_jobs,
-                                  verbose=0 if args.quiet else 1)
+                                  progress=not args.quiet)
         except (ValueError, TypeError) as exc:  # documented: input problems
             raise UsageError(_one_line(exc)) from exc
         summary = report.summary()

@@ -1,10 +1,13 @@
-"""Progress of ``analyze``: tqdm bars for free runs and spectra only when asked, stage times."""
+"""Progress of ``analyze`` and ``gap``: tqdm bars for free runs, spectra and gap fits only
+when asked, stage times."""
 
 import numpy as np
 import pytest
 
 from skdelay import analyze_series
 from skdelay.cli import main
+from skdelay.gap import diagnose_gap
+from skdelay.systems import MackeyGlass
 
 
 def _delay_map(n=6000, delay=12, seed=0):
@@ -50,3 +53,64 @@ def test_cli_progress_lines_carry_elapsed_time(series, tmp_path, capsys):
     err = capsys.readouterr().err
     assert "[skdelay " in err and " s] delay scan" in err
     assert "Jacobians" in err  # the spectra's bars (--quiet: none, tests/test_cli.py)
+
+
+# ------------------------------------------------------------------------------ gap fits
+@pytest.fixture(scope="module")
+def hum_record():
+    t = np.arange(2000)
+    return MackeyGlass().simulate(2000, random_state=1) + 0.1 * np.sin(2 * np.pi * 0.2 * t)
+
+
+BARS = []
+
+
+class _Bar:
+    """Stands in for tqdm: records the total and the steps of each bar (in ``BARS``)."""
+
+    def __init__(self, total=None, desc="", **kwargs):
+        self.total, self.desc, self.n, self.postfix = total, desc, 0, []
+        BARS.append(self)
+
+    def update(self, n=1):
+        self.n += n
+
+    def set_postfix_str(self, s=""):
+        self.postfix.append(s)
+
+    def refresh(self):
+        pass
+
+    def close(self):
+        pass
+
+
+def test_gap_progress_steps_once_per_candidate_fit(hum_record, monkeypatch):
+    monkeypatch.setattr("tqdm.auto.tqdm", _Bar)
+    BARS.clear()
+    effects = ["periodic_interference", "measurement_noise", "lowpass"]
+    rep = diagnose_gap(hum_record, MackeyGlass(), effects=effects, random_state=0, n_jobs=1,
+                       progress=True)
+    assert rep.best_effect == "periodic_interference"
+    (bar,) = BARS
+    assert bar.desc == "gap diagnosis"
+    # the simulator runs, every candidate of round 1, then the second round (if any)
+    assert bar.n >= 1 + len(effects)
+    assert bar.total == bar.n  # unused planned stages were taken off: the bar ends full
+    assert bar.postfix[:2] == ["simulator runs", "candidate fits"]
+
+
+def test_gap_is_silent_without_progress(hum_record, capsys):
+    diagnose_gap(hum_record, MackeyGlass(), effects=["periodic_interference"], random_state=0)
+    assert capsys.readouterr().err == ""
+
+
+def test_cli_gap_shows_the_bar_unless_quiet(hum_record, tmp_path, capsys):
+    path = tmp_path / "real.npy"
+    np.save(path, hum_record)
+    base = ["gap", str(path), "--system", "mackey_glass", "--effects", "periodic_interference"]
+    assert main([*base, "--out", str(tmp_path / "a")]) == 0
+    assert "gap diagnosis" in capsys.readouterr().err
+    assert main([*base, "--out", str(tmp_path / "b"), "--quiet"]) == 0
+    assert capsys.readouterr().err == ""
+
