@@ -171,15 +171,33 @@ class PeriodicInterference(Effect):
         """The strongest line of the whole-record multitaper search (any frequency from a few
         cycles per record to Nyquist), else the Welch-based :meth:`guess`."""
         if problem.lines:
-            from ._lines import line_amplitude
-
-            line = problem.lines[0]
-            # the frequency is read off the whole record (the halves of a cross-validation
-            # share it: a hum of 3 cycles per record has 1.5 per half); amplitude and phase
-            # come from this record's own samples, so a half's fit never sees the other half
-            amp, phase = line_amplitude(problem.real, line.frequency, problem.sample_dt)
-            return self._params(line.frequency, amp, phase)
+            return self._line_params(problem, problem.lines[0])
         return super().initial(problem)
+
+    def _line_params(self, problem, line):
+        from ._lines import line_amplitude
+
+        # the frequency is read off the whole record (the halves of a cross-validation
+        # share it: a hum of 3 cycles per record has 1.5 per half); amplitude and phase
+        # come from this record's own samples, so a half's fit never sees the other half
+        amp, phase = line_amplitude(problem.real, line.frequency, problem.sample_dt)
+        return self._params(line.frequency, amp, phase)
+
+    def search(self, problem, guess, objective):
+        """Every line found is a starting point; the search refines the one whose hum
+        leaves the smallest gap.
+
+        The lines are ranked by their excess over the simulator runs (``z``), which
+        says how surely a line is not the dynamics', not which one a single hum
+        explains best: on Mackey-Glass with dynamical noise (0.0046) and a 0.38-std
+        hum (6000 samples), three weak lines the noise raised ranked above the hum
+        (z 2.77, harmonic F 118), and the hum was fitted at one of them (0.032 instead
+        of 0.0143, amplitude 0.05) and then missed.  One gap evaluation per line.
+        """
+        starts = [guess] + [self._line_params(problem, line) for line in problem.lines[1:]]
+        if len(starts) > 1:
+            guess = starts[int(np.argmin([objective(p) for p in starts]))]
+        return super().search(problem, guess, objective)
 
     def search_bounds(self, guess, context):
         g = guess["amplitude"]
