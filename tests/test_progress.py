@@ -114,3 +114,13 @@ def test_cli_gap_shows_the_bar_unless_quiet(hum_record, tmp_path, capsys):
     assert main([*base, "--out", str(tmp_path / "b"), "--quiet"]) == 0
     assert capsys.readouterr().err == ""
 
+
+
+def test_gap_progress_must_be_a_flag():
+    import numpy as np
+
+    from skdelay.gap import diagnose_gap
+    from skdelay.systems import MackeyGlass
+
+    with pytest.raises(ValueError, match="progress must be True, False or None"):
+        diagnose_gap(np.sin(np.arange(3000) * 0.1), MackeyGlass(), progress="yes")

@@ -602,6 +602,9 @@ def diagnose_gap(real, simulator, *, sample_dt=1.0, effects=None, random_state=N
     # 2-core machine OpenBLAS's threads spin against each other and the line feature took
     # 175 ms of CPU per run instead of 4.5 ms single-threaded (joblib's workers are limited
     # by joblib itself)
+    if progress is not None and not isinstance(progress, (bool, np.bool_)):
+        raise ValueError(f"progress must be True, False or None, got {progress!r}; pass "
+                         "progress=True for a progress bar.")
     with threadpool_limits(limits=1, user_api="blas"):
         return _diagnose(real, simulator, sample_dt=sample_dt, effects=effects,
                          random_state=random_state, n_jobs=n_jobs, n_sims=n_sims,
