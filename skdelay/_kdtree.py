@@ -241,44 +241,52 @@ def window_knn_lists(s, m, is_member, tree, sdata, sids, needed, k, theiler, n_c
     the ``k``-th neighbour, ``inf`` for a short list): every eligible member
     outside a list is at least that far away.
 
-    The needed times are cut into ``n_chunks`` runs searched in parallel; within
-    a run, a time ``t`` following ``t - 1`` starts from the bound given by the
+    The needed times are cut into ``n_chunks`` runs searched in parallel by
+    :func:`window_knn_run`.
+    """
+    bounds = np.linspace(0, needed.size, n_chunks + 1).astype(np.int64)
+    for ch in prange(n_chunks):
+        window_knn_run(s, m, is_member, tree, sdata, sids, needed, bounds[ch], bounds[ch + 1],
+                       k, theiler, lists, rk2)
+
+
+@njit(cache=True, nogil=True)
+def window_knn_run(s, m, is_member, tree, sdata, sids, needed, lo, hi, k, theiler, lists, rk2):
+    """Rows ``lo:hi`` of :func:`window_knn_lists`, serially (no parallel region: safe to
+    call from several Python threads at once, whatever numba's threading layer).
+
+    A time ``t`` following ``t - 1`` starts from the bound given by the
     neighbours of ``t - 1`` shifted by one sample (``j + 1`` shares ``m - 1``
     coordinates with ``j``), which prunes most of the tree at once.
     """
-    n = needed.size
-    bounds = np.linspace(0, n, n_chunks + 1).astype(np.int64)
     n_max = is_member.size
-    for ch in prange(n_chunks):
-        best_d = np.empty(k)
-        best_i = np.empty(k, dtype=np.int64)
-        seed_d = np.empty(k)
-        q = np.empty(m)
-        stack = np.empty(256, dtype=np.int64)
-        prev_full = False
-        for r in range(bounds[ch], bounds[ch + 1]):
-            t = needed[r]
-            for lag in range(m):
-                q[lag] = s[t - lag]
-            bound = np.inf
-            if prev_full and r > 0 and needed[r - 1] == t - 1:
-                ok = True
-                for c in range(k):
-                    j = np.int64(lists[r - 1, c]) + 1
-                    if j >= n_max or not is_member[j] or (theiler >= 0
-                                                           and abs(j - t) <= theiler):
-                        ok = False
-                        break
-                    acc = 0.0
-                    for lag in range(m):
-                        x = s[j - lag] - q[lag]
-                        acc += x * x
-                    seed_d[c] = acc
-                if ok:
-                    bound = seed_d.max()
-            found = _knn_seeded(sdata, sids, tree, q, k, t, theiler, bound, best_d, best_i,
-                                stack)
+    best_d = np.empty(k)
+    best_i = np.empty(k, dtype=np.int64)
+    seed_d = np.empty(k)
+    q = np.empty(m)
+    stack = np.empty(256, dtype=np.int64)
+    prev_full = False
+    for r in range(lo, hi):
+        t = needed[r]
+        for lag in range(m):
+            q[lag] = s[t - lag]
+        bound = np.inf
+        if prev_full and r > 0 and needed[r - 1] == t - 1:
+            ok = True
             for c in range(k):
-                lists[r, c] = best_i[c] if c < found else -1
-            rk2[r] = best_d[k - 1] if found == k else np.inf
-            prev_full = found == k
+                j = np.int64(lists[r - 1, c]) + 1
+                if j >= n_max or not is_member[j] or (theiler >= 0 and abs(j - t) <= theiler):
+                    ok = False
+                    break
+                acc = 0.0
+                for lag in range(m):
+                    x = s[j - lag] - q[lag]
+                    acc += x * x
+                seed_d[c] = acc
+            if ok:
+                bound = seed_d.max()
+        found = _knn_seeded(sdata, sids, tree, q, k, t, theiler, bound, best_d, best_i, stack)
+        for c in range(k):
+            lists[r, c] = best_i[c] if c < found else -1
+        rk2[r] = best_d[k - 1] if found == k else np.inf
+        prev_full = found == k
