@@ -5,7 +5,9 @@ tau = 1..500; Mackey-Glass, 0.5 % noise, 12 bits, delay 100 / 150) the
 default scan (``forecast_error_curve``, m = 2..5, 10^4 coarse queries,
 refined at the dip) is timed in the same run
 
-* with ``n_jobs=1`` (T1) and ``n_jobs=--workers`` (Tn), loky backend;
+* with ``n_jobs=1`` (T1) and ``n_jobs=--workers`` (Tn), the scan's default
+  backend (``threading``: every task is a nogil compiled kernel) or, with
+  ``--backend loky``, loky processes (the lists go out as memory maps);
 * with ``--workers`` Dask workers (``dask.distributed.LocalCluster``, one
   thread each, ``joblib.parallel_config(backend="dask")``), unless dask is
   missing (the row then says so) or ``--no-dask``.
@@ -28,6 +30,7 @@ import argparse
 import os
 import time
 
+import joblib
 import numpy as np
 from delay_scan import series, timed
 
@@ -72,6 +75,9 @@ def main():
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--queries", type=int, default=10_000)
     parser.add_argument("--no-dask", action="store_true")
+    parser.add_argument("--backend", choices=("threading", "loky"), default="threading",
+                        help="joblib backend of the T1 / Tn rows (default: the scan's own, "
+                             "threads)")
     parser.add_argument("--dask-n", type=int, nargs="*", default=None,
                         help="record lengths with a Dask row (default: all of --n)")
     args = parser.parse_args()
@@ -89,11 +95,12 @@ def main():
             s = series(n, delay)
             results = {}
             for workers in (1, args.workers):
-                scan(warm, range(1, 30), workers, 300)  # workers up, kernels loaded
-                ld = load()
-                fe, wall, _, cpu = timed(scan, s, taus, workers, args.queries)
+                with joblib.parallel_config(backend=args.backend):
+                    scan(warm, range(1, 30), workers, 300)  # workers up, kernels loaded
+                    ld = load()
+                    fe, wall, _, cpu = timed(scan, s, taus, workers, args.queries)
                 results[workers] = (fe, wall)
-                row("loky", n, workers, wall, cpu, results[1][1], results[1][0], fe,
+                row(args.backend, n, workers, wall, cpu, results[1][1], results[1][0], fe,
                     f"{ld} -> {load()}")
             if args.no_dask or n not in dask_n:
                 continue
@@ -102,8 +109,6 @@ def main():
             if client is None:
                 print(f"| {n} | dask | {args.workers} | {why} | | | | | |", flush=True)
                 continue
-            import joblib
-
             with joblib.parallel_config(backend="dask"):
                 scan(warm, range(1, 30), -1, 300)
                 ld = load()

@@ -200,7 +200,7 @@ def fit_gathered(Vq, Vn, yn, w, ridge, order, fallback):
     return A, b, pred
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)  # the exact scan's tasks may run in threads
 def fit_from_series(s, q_t, nb_t, weight, cols, ridge, order, fallback):
     """Forecasts ``pred`` (n,) of ``s[q_t + 1]`` from neighbours read off the series.
 

@@ -5,6 +5,7 @@ import warnings
 import numpy as np
 import pytest
 from _dde import measured_mackey_glass
+from joblib import parallel_config
 
 from skdelay._embedding import required_lags
 from skdelay._local_linear import LocalLinearDelayMap
@@ -212,7 +213,8 @@ def test_progress_bar_and_shared_arrays(mg30, capsys, monkeypatch):
     ref = forecast_error_curve(mg30[:3000], **kw)
     assert capsys.readouterr().err == ""  # quiet by default
     monkeypatch.setattr(scan, "SHARE_BYTES", 0)  # every array through the memory maps
-    shared = forecast_error_curve(mg30[:3000], n_jobs=2, progress=True, **kw)
+    with parallel_config(backend="loky"):  # processes (threads, the default, share memory)
+        shared = forecast_error_curve(mg30[:3000], n_jobs=2, progress=True, **kw)
     err = capsys.readouterr().err
     assert "delay scan" in err and "task" in err
     np.testing.assert_array_equal(shared.to_numpy(), ref.to_numpy())

@@ -172,7 +172,10 @@ def test_equal_neighbourhood(mg30):
 def test_n_jobs_and_dask_give_the_same_table(mg30):
     kw = {"m": (2, 3), "tau": range(27, 34), "n_queries": 300, "random_state": 0}
     ref = forecast_error_curve(mg30[:4000], **kw)
+    # threads by default; processes (memory-mapped lists) when the user asks for loky
     pd.testing.assert_frame_equal(forecast_error_curve(mg30[:4000], n_jobs=2, **kw), ref)
+    with parallel_config(backend="loky"):
+        pd.testing.assert_frame_equal(forecast_error_curve(mg30[:4000], n_jobs=2, **kw), ref)
     distributed = pytest.importorskip("distributed")
     pytest.importorskip("dask")
     client = distributed.Client(processes=False, n_workers=1, threads_per_worker=2,
