@@ -584,10 +584,11 @@ def analyze_series(series, options=None, *, quick=False, random_state=0, n_jobs=
     say(f"delay scan: m = {', '.join(map(str, ms))}, tau = {taus.start}..{taus.stop - 1} "
         f"({len(ms) * len(taus)} cells, {opts.n_queries} forecasts each)")
     t1 = time.perf_counter()
+    bar = progress is not None and verbose > 0
+    # the bar replaces joblib's "Done k out of n" lines, which broke it into pieces
     curve = forecast_error_curve(s, m=ms, tau=taus, n_queries=opts.n_queries,
-                                 refine=opts.refine, progress=progress is not None and
-                                 verbose > 0, random_state=random_state, n_jobs=n_jobs,
-                                 verbose=verbose)
+                                 refine=opts.refine, progress=bar, random_state=random_state,
+                                 n_jobs=n_jobs, verbose=0 if bar else verbose)
     dips = locate_dips(curve)
     dips["tau_used"] = dips["tau_best"]
     timings["delay_scan"] = time.perf_counter() - t1

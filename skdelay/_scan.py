@@ -1028,6 +1028,10 @@ def scan_series(s, ms, taus, splits, options, *, random_state=None, n_jobs=None,
 
         bar = tqdm(total=0, desc="delay scan", unit="task")
 
+    def n_chunks_of(idx):
+        """Scan tasks (chunks of taus) of a cell with tau indices ``idx``."""
+        return max(1, min(idx.size, TASKS_PER_WORKER * n_workers))
+
     def prepare(cell):
         """One (split, m) cell: its query set, tau chunks, candidate-list tasks and a
         ``make(list_results) -> (scan tasks, shared arrays)``."""
@@ -1037,8 +1041,7 @@ def scan_series(s, ms, taus, splits, options, *, random_state=None, n_jobs=None,
         q_t = np.sort(order[:n_q])
         o = dict(job_opt, theiler=w, radius=rad)
         n_b = min(N_BATCHES, q_t.size)
-        n_chunks = max(1, min(idx.size, TASKS_PER_WORKER * n_workers))
-        chunks = [c for c in np.array_split(idx, n_chunks) if c.size]
+        chunks = [c for c in np.array_split(idx, n_chunks_of(idx)) if c.size]
         if opt.search == "exact":
             tasks = [delayed(_exact_task)(s, m, taus[c], db_m, q_t, o, n_b) for c in chunks]
             return _Cell(cell, q_t, chunks, [], lambda _: (tasks, ()))
@@ -1105,6 +1108,9 @@ def scan_series(s, ms, taus, splits, options, *, random_state=None, n_jobs=None,
         on the paper-scale scan with 2 workers: the assembly then waits for
         the whole call.)
         """
+        if bar is not None:  # every scan task is known now (list tasks: once planned)
+            bar.total += sum(n_chunks_of(c[2]) for c in cells)
+            bar.refresh()
         pending = None  # (cell, scan tasks, shared arrays) whose scan goes out next
         nxt = prepare(cells[0]) if cells else None
         n = 0
@@ -1112,10 +1118,10 @@ def scan_series(s, ms, taus, splits, options, *, random_state=None, n_jobs=None,
             lists = nxt.list_tasks if nxt is not None else []
             scan = pending[1] if pending is not None else []
             if bar is not None:
-                bar.total += len(scan) + len(lists)
-                if lists:
-                    bar.set_postfix_str(f"candidate lists m={nxt.cell[1]}")
-                bar.refresh()
+                bar.total += len(lists)
+                what = ([f"candidate lists m={nxt.cell[1]}"] if lists else []) + \
+                    ([f"scan m={pending[0].cell[1]}"] if scan else [])
+                bar.set_postfix_str(", ".join(what))
             results = iter(parallel(lists + scan)) if lists or scan else iter(())
             ready = None
             if nxt is not None:
