@@ -413,6 +413,8 @@ def run_case(case, n, sample_dt):
            "second": rep.combined["effects"][1] if rep.combined else None,
            "cv_shrink": rep.shrink, "fit_shrink": rep.info.get("shrink_fit", np.nan)}
     out["explained"] = rep.explained
+    # an undecided tie test: the record cannot tell the best effect from this one
+    out["tie"] = (rep.tie["effects"][1] if rep.tie and not rep.tie["decided"] else None)
     hums = [params for name, params in case["chain"] if name == "periodic_interference"]
     if hums:
         out["hum_cycles"] = hums[0]["frequency"] * n * sample_dt
@@ -651,8 +653,8 @@ def main(argv=None):
 
     if len(single):  # (--only may leave none)
         print("\n-- every single-effect case --")
-        print(single[["system", "true", "strength", "found", "true_params", "fit_params",
-                      "error", "shrink", "gap_before"]].to_string(
+        print(single[["system", "true", "strength", "found", "tie", "true_params",
+                      "fit_params", "error", "shrink", "gap_before"]].to_string(
                           index=False, float_format=lambda v: f"{v:.3g}"))
 
     comb = df[df.true.str.contains(r"\+")]
@@ -674,6 +676,11 @@ def main(argv=None):
     print(f"parameters within tolerance (of the hits): "
           f"{mod[mod.hit].recovered.mean():.0%}; median shrink {mod[mod.hit].shrink.median():.2f}")
     print(f"weak: right effect first {single[single.strength == 'weak'].hit.mean():.0%}")
+    tied = df[df.tie.notna()]
+    among = [t in (f, o) for t, f, o in zip(tied.true, tied.found, tied.tie)]
+    print(f"reported as a tie (the record cannot tell the best effect from a runner-up): "
+          f"{len(tied)} of {len(df)} cases, the hidden effect among the two in "
+          f"{sum(among)}; of these, first {int(sum(tied.true == tied.found))}")
     for kind, part in (("no-effect", ctrl[ctrl.strength == "-"]),
                        ("ADC-count", ctrl[ctrl.strength == "adc"])):
         print(f"{kind} controls reported as None: {(part.found == 'None').mean():.0%} "

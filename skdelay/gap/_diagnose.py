@@ -521,6 +521,83 @@ def _better_first(problem, table, evaluations, by_name, second, second_evals, pa
     return pick
 
 
+#: the two best candidates of round 1 are re-evaluated on fresh noise realisations when each
+#: alone brings the record's in-sample gap within the no-gap threshold: one realisation
+#: cannot rank them.  On the electro-optic oscillator (6000 samples at step 0.25, the
+#: benchmark's moderate cases) the gap left by the true dynamical noise (0.102) was 0.10,
+#: 0.51, 3.11, 1.50, 0.20 on five seed sets and that of measurement noise 0.49, 1.80, 0.70,
+#: 2.45, 0.33: the single cross-validated ranking put measurement noise first (shrink 0.91 vs
+#: 0.65).  With true measurement noise the differences were one-sided (4 of 5) but still
+#: within the scatter of five.  So realisations come in batches of TIE_BATCH, up to
+#: TIE_MAX_SEEDS fresh seed sets, until a paired t-test at level TIE_LEVEL decides.
+TIE_BATCH = 4
+TIE_MAX_SEEDS = 12
+TIE_LEVEL = 0.95
+
+
+def _evaluate_pair(problem, seed, chains):
+    """Gaps of each chain on ``problem`` reseeded with ``seed`` (a joblib task)."""
+    with threadpool_limits(limits=1, user_api="blas"):
+        twin = problem.reseeded(seed)
+        out = []
+        for chain in chains:
+            try:
+                out.append(float(twin.evaluate(chain, "full").gap))
+            except CandidateFailed:
+                out.append(np.inf)
+        return out
+
+
+def tie_test(problem, table, by_name, threshold, parallel):
+    """Can the record tell its two best candidates apart?  A dict, or None when not asked.
+
+    Asked when both rows are fitted, remove at least ``MIN_SHRINK`` (cross-validated) and
+    each alone leaves an in-sample gap within ``threshold``.  Both are then re-evaluated
+    with their whole-record parameters on fresh seed sets (:meth:`GapProblem.reseeded`),
+    paired per set; the original seeds are the first pair.  Returns ``effects`` (the two
+    names, best first), ``gaps`` (per candidate, one per realisation), ``difference`` (mean
+    second minus first), ``se``, ``t``, ``critical``, ``n_realisations`` and ``decided``
+    (the difference exceeds the t-test's critical value: ``effects[0]`` is then the better
+    one, which may swap the table's order).
+    """
+    from scipy import stats
+
+    if len(table) < 2:
+        return None
+    a, b = table.iloc[0], table.iloc[1]
+    for row in (a, b):
+        if (row["status"] != "ok" or not row["shrink"] >= MIN_SHRINK
+                or not row["gap_after_fit"] <= threshold):
+            return None
+    if b.get("consistent") is False:
+        return None
+    chains = [[(by_name[r["effect"]], dict(r["params"]))] for r in (a, b)]
+    gaps = [[float(a["gap_after_fit"])], [float(b["gap_after_fit"])]]
+    parallel.start("tie check")
+    done = 0
+    while True:
+        seeds = range(done + 1, done + 1 + TIE_BATCH)
+        for ga, gb in parallel(delayed(_evaluate_pair)(problem, s, chains) for s in seeds):
+            gaps[0].append(ga)
+            gaps[1].append(gb)
+        done += TIE_BATCH
+        d = np.asarray(gaps[1]) - np.asarray(gaps[0])
+        d = d[np.isfinite(d)]
+        n = d.size
+        se = float(d.std(ddof=1) / np.sqrt(n)) if n > 1 else np.inf
+        crit = float(stats.t.ppf(0.5 + TIE_LEVEL / 2, max(n - 1, 1)))
+        mean = float(d.mean()) if n else 0.0
+        t = mean / se if se > 0 else (np.inf if mean else 0.0)
+        if abs(t) > crit or done >= TIE_MAX_SEEDS:
+            break
+    names = [a["effect"], b["effect"]]
+    if abs(t) > crit and mean < 0:  # the runner-up leaves less: it is the better one
+        names, gaps, mean, t = names[::-1], gaps[::-1], -mean, -t
+    return {"effects": names, "gaps": [list(map(float, g)) for g in gaps],
+            "difference": mean, "se": se, "t": float(t), "critical": crit,
+            "n_realisations": int(n), "decided": bool(abs(t) > crit)}
+
+
 def diagnose_gap(real, simulator, *, sample_dt=1.0, effects=None, random_state=None,
                  n_jobs=None, n_sims=6, combine=True, verbose=0, time_unit=None,
                  cross_validated=True, progress=None):
@@ -730,8 +807,13 @@ def _run(real, simulator, sample_dt, candidates, random_state, n_jobs, n_sims, c
         parallel.start("cross-validation")
         cv = cross_validate(ok, parts, parallel) if ok else None
     table, evaluations = _table(results, gap_before, problem, by_name, cv)
+    tie = None
     if sig["significant"]:
         table, evaluations = _consistent_first(problem, table, evaluations, by_name)
+        tie = tie_test(problem, table, by_name, sig["threshold"], parallel)
+        if tie is not None and tie["effects"][0] != table.iloc[0]["effect"]:
+            table = table.iloc[[1, 0] + list(range(2, len(table)))].reset_index(drop=True)
+            evaluations = [evaluations[1], evaluations[0]] + evaluations[2:]
     best, chain = None, []
     top = table.iloc[0]
     if sig["significant"] and top["status"] == "ok" and top["shrink"] >= MIN_SHRINK:
@@ -782,4 +864,6 @@ def _run(real, simulator, sample_dt, candidates, random_state, n_jobs, n_sims, c
                                   best_effect=best, combined=combined, after=after,
                                   cv_shrink=cv_shrink, cross_validated=cv is not None,
                                   explained=status, reasons=reasons, lacking=lacking,
-                                  checks=consistency(problem, chain))
+                                  checks=consistency(problem, chain),
+                                  tie=tie if (tie is not None and best == tie["effects"][0])
+                                  else None)

@@ -320,6 +320,24 @@ class GapProblem:
         # the parent's seeds: the halves' evaluations share the parent's random numbers
         self.sim_seeds, self.effect_seed = parent.sim_seeds, parent.effect_seed
 
+    def reseeded(self, seed):
+        """This problem with fresh simulator and effect seeds (and fresh clean runs).
+
+        The indicators, their bins and the clean spread stay those of the
+        original ensemble, so gaps on the copy are on the same scale; only the
+        random numbers change.  :func:`~skdelay.gap._diagnose.tie_test` uses it
+        to see how far a candidate's gap moves with the noise realisation.
+        """
+        import copy
+
+        rng = np.random.default_rng(np.random.SeedSequence([self.effect_seed, int(seed)]))
+        twin = copy.copy(self)
+        twin.sim_seeds = rng.integers(0, 2**31 - 1, size=len(self.sim_seeds))
+        twin.effect_seed = int(rng.integers(0, 2**31 - 1))
+        twin.base = [run_simulator(self.simulator, self.n_samples, self.sample_dt, s, {})
+                     for s in twin.sim_seeds]
+        return twin
+
     def line_contribution(self):
         """Gap removed by subtracting the strongest spectral line (its signature estimate)."""
         if not self.lines:

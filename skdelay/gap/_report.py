@@ -77,6 +77,12 @@ class GapReport:
         Why the gap is not fully explained (what remains).
     checks : list of (effect, bool, str)
         The independent-evidence checks of the fitted parameters.
+    tie : dict or None
+        When the two best candidates each explain the record in-sample, their
+        gaps on fresh noise realisations (:func:`skdelay.gap._diagnose.tie_test`):
+        ``effects``, ``gaps``, ``difference``, ``se``, ``t``, ``critical``,
+        ``n_realisations`` and ``decided`` (False: the record cannot tell the
+        two apart at this length).  None when the test was not needed.
     """
 
     best_effect: str | None
@@ -93,12 +99,13 @@ class GapReport:
     explained: str = "no gap"
     reasons: list = field(default_factory=list)
     checks: list = field(default_factory=list)
+    tie: dict | None = None
 
     @classmethod
     def from_problem(cls, problem, *, table, where, significance, best_effect, combined, after,
                      lacking=(),
                      explained="no gap", reasons=(), checks=(), cv_shrink=None,
-                     cross_validated=False):
+                     cross_validated=False, tie=None):
         """Assemble the report from a solved :class:`GapProblem`."""
         from ._where import localise
 
@@ -136,7 +143,7 @@ class GapReport:
                    residual_where=(localise(problem, after, lacking=lacking)
                                    if after is not None else None),
                    profiles=profiles, info=info, explained=explained, reasons=list(reasons),
-                   checks=list(checks))
+                   checks=list(checks), tie=tie)
 
     # ---------------------------------------------------------------- text
     def _where_phrase(self, df, k=3):
@@ -210,6 +217,23 @@ class GapReport:
         return (f", significant although the gap {self.gap_before:.3g} is within the no-gap "
                 f"threshold {s['threshold']:.3g}: {what}")
 
+    def _tie_words(self):
+        """A sentence on the tie test (empty when it was not run)."""
+        t = self.tie
+        if not t:
+            return ""
+        (a, b), (ga, gb) = t["effects"], t["gaps"]
+        n = t["n_realisations"]
+        gaps = (f"over {n} noise realisations {a} leaves a gap of {np.mean(ga):.3g} on "
+                f"average and {b} {np.mean(gb):.3g} (difference {t['difference']:.3g} +- "
+                f"{t['se']:.2g}")
+        if t["decided"]:
+            return (f"The effect {a} is preferred to {b}, which also explains the record in-sample: "
+                    f"{gaps}, t = {t['t']:.2g} above {t['critical']:.2g}).")
+        return (f"The effect {b} does as well: {gaps}, t = {t['t']:.2g} within "
+                f"{t['critical']:.2g}), so this record cannot tell {a} from {b}; a longer "
+                "record would.")
+
     def headline(self):
         """Where the data differ, which effect explains it (or how much of it), how far."""
         s = self.significance
@@ -245,6 +269,8 @@ class GapReport:
         else:
             which = (f"{label} account{'' if len(names) > 1 else 's'} for part of it "
                      f"({100 * self.shrink:.0f} %); the rest lies outside the effect library.")
+        if self.tie and not self.tie["decided"]:
+            which = f"{which} {self._tie_words()}"
         state = "within" if self.gap_after <= thr else "still above"
         far = (f"With {'them' if len(names) > 1 else 'it'} the gap falls from "
                f"{self.gap_before:.3g} to {self.gap_after:.3g} ({100 * self.shrink:.0f} % "
@@ -293,6 +319,8 @@ class GapReport:
         if len(ok) > 1:
             nxt = ok.iloc[1]
             text.append(f"Runner-up: {nxt['effect']} ({100 * nxt['shrink']:.0f}%).")
+        if self.tie:
+            text.append(self._tie_words())
         if self.combined is not None:
             c = self.combined
             t = c["table"].iloc[0]
