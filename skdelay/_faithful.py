@@ -88,7 +88,9 @@ COLLAPSE_STD_FRACTION = 0.25
 PERIODIC_ACF = 0.995
 #: The Lyapunov spectrum has converged in ``m`` when lambda_1 and D_KY of a model lie
 #: within this relative change of the ``m_max`` model, or lambda_1 within three combined
-#: block-spread standard errors of it (the statistical resolution of the estimate).
+#: block-spread standard errors of it (the statistical resolution of the estimate).  The
+#: ``m_max`` model itself is compared with ``m_max - 1``: against itself it would pass by
+#: construction, and one model alone shows no convergence.
 LYAPUNOV_TOLERANCE = 0.25
 #: Measurement noise above this fraction of the data's standard deviation biases the
 #: local fits (errors in variables: noisy inputs shrink the local slopes, so the free runs
@@ -341,10 +343,16 @@ def _taus_for(s, m_values, tau, tau_grid, seed, n_jobs):
 
 
 def _lyapunov_verdicts(table, spectra, m_max):
-    ref = spectra[m_max]
-    lam_ref, d_ref = float(ref.exponents[0]), float(ref.kaplan_yorke_dimension)
+    """Convergence in m: every model against ``m_max``, and ``m_max`` against ``m_max - 1``
+    (NaN and a pass when ``m_max`` is the only model: nothing to compare with)."""
     change, ok = {}, {}
     for m, spec in spectra.items():
+        partner = m_max if m != m_max else m_max - 1
+        if partner not in spectra:
+            change[m], ok[m] = np.nan, True
+            continue
+        ref = spectra[partner]
+        lam_ref, d_ref = float(ref.exponents[0]), float(ref.kaplan_yorke_dimension)
         lam, d_ky = float(spec.exponents[0]), float(spec.kaplan_yorke_dimension)
         rel = max(abs(lam - lam_ref) / max(abs(lam_ref), 1e-300),
                   abs(d_ky - d_ref) / max(d_ref, 1.0))
@@ -390,8 +398,9 @@ def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_mi
     :func:`noise_level`, and the high-order differences of the data,
     :func:`skdelay._sampling.white_noise_level`); where that noise is
     resolved and exceeds :data:`DENOISE_ABOVE` of the data's spread the
-    models are fitted on noise-reduced data (``denoise``).  And ``lyapunov``: lambda_1 and D_KY have converged against the
-    ``m_max`` model (:data:`LYAPUNOV_TOLERANCE`).
+    models are fitted on noise-reduced data (``denoise``).  And ``lyapunov``:
+    lambda_1 and D_KY have converged against the ``m_max`` model, and the
+    ``m_max`` model against ``m_max - 1`` (:data:`LYAPUNOV_TOLERANCE`).
 
     Parameters
     ----------

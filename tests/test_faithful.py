@@ -34,7 +34,13 @@ def test_result_holds_everything_it_computed(result):
     assert all(len(result.runs[m]) == 3 and result.runs[m][0].size == 8000 for m in (2, 3, 4))
     # the spectra in the table are the returned ones, not recomputed
     assert tab.loc[3, "lambda_1"] == result.spectra[3].exponents[0]
-    assert tab.loc[4, "lyapunov"] == 0.0
+    # m_max is compared with m_max - 1 (against itself it would pass by construction)
+    s3, s4 = result.spectra[3], result.spectra[4]
+    lam = abs(s4.exponents[0] - s3.exponents[0]) / abs(s3.exponents[0])
+    dky = abs(s4.kaplan_yorke_dimension - s3.kaplan_yorke_dimension) / max(
+        s3.kaplan_yorke_dimension, 1.0)
+    assert tab.loc[4, "lyapunov"] == pytest.approx(max(lam, dky))
+    assert tab.loc[4, "lyapunov"] > 0.0
 
 
 def test_scalar_window_is_not_faithful_but_larger_windows_are(result):
