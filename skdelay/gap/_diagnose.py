@@ -548,31 +548,77 @@ def _evaluate_pair(problem, seed, chains):
         return out
 
 
+def _eligible(row):
+    """A round-1 row that could explain the record: fitted, removes MIN_SHRINK, and its
+    parameters do not contradict the independent evidence."""
+    return (row["status"] == "ok" and row["shrink"] >= MIN_SHRINK
+            and row.get("consistent") is not False)
+
+
 def tie_test(problem, table, by_name, threshold, parallel):
     """Can the record tell its two best candidates apart?  A dict, or None when not asked.
 
-    Asked when both rows are fitted, remove at least ``MIN_SHRINK`` (cross-validated) and
-    each alone leaves an in-sample gap within ``threshold``.  Both are then re-evaluated
-    with their whole-record parameters on fresh seed sets (:meth:`GapProblem.reseeded`),
-    paired per set; the original seeds are the first pair.  Returns ``effects`` (the two
-    names, best first), ``gaps`` (per candidate, one per realisation), ``difference`` (mean
-    second minus first), ``se``, ``t``, ``critical``, ``n_realisations`` and ``decided``
-    (the difference exceeds the t-test's critical value: ``effects[0]`` is then the better
-    one, which may swap the table's order).
+    Asked when both rows are eligible (fitted, remove at least ``MIN_SHRINK``
+    cross-validated, parameters not contradicted) and each alone leaves an in-sample gap
+    within ``threshold``; :func:`compare_chains` then decides.
     """
-    from scipy import stats
-
     if len(table) < 2:
         return None
     a, b = table.iloc[0], table.iloc[1]
-    for row in (a, b):
-        if (row["status"] != "ok" or not row["shrink"] >= MIN_SHRINK
-                or not row["gap_after_fit"] <= threshold):
-            return None
-    if b.get("consistent") is False:
+    if not all(_eligible(r) and r["gap_after_fit"] <= threshold for r in (a, b)):
         return None
     chains = [[(by_name[r["effect"]], dict(r["params"]))] for r in (a, b)]
-    gaps = [[float(a["gap_after_fit"])], [float(b["gap_after_fit"])]]
+    return compare_chains(problem, chains, [float(a["gap_after_fit"]),
+                                            float(b["gap_after_fit"])], parallel)
+
+
+def pair_tie_test(problem, table, by_name, chain, after, threshold, parallel):
+    """The tie test of the combined explanation: best + second effect against round 1's
+    runner-up + the same second effect (refitted on top of it), when both pairs leave an
+    in-sample gap within ``threshold``.  A dict (with ``with``: the second effect), or None.
+    """
+    if len(table) < 2 or len(chain) != 2 or not after.gap <= threshold:
+        return None
+    b = table.iloc[1]
+    second = chain[1][0]
+    if not _eligible(b) or b["effect"] == second.name:
+        return None
+    base = [(by_name[b["effect"]], dict(b["params"]))]
+    (res,) = parallel([delayed(fit_effect)(second, problem, base)])
+    if not (res.ok and res.gap_after <= threshold):
+        return None
+    tie = compare_chains(problem, [list(chain), base + [(second, res.params)]],
+                         [float(after.gap), float(res.gap_after)], parallel)
+    tie["with"] = second.name
+    return tie
+
+
+def _reported_tie(tie, best, combined):
+    """The tie test's result when it is about the explanation the report gives, else None
+    (a later swap of round 1's best, or another second effect, made it moot)."""
+    if tie is None or tie["effects"][0] != best:
+        return None
+    if "with" in tie and (combined is None or combined["effects"][1] != tie["with"]):
+        return None
+    if "with" not in tie and combined is not None:
+        return None  # round 1 tied, but the explanation is a pair: its own test did not run
+    return tie
+
+
+def compare_chains(problem, chains, gaps0, parallel):
+    """Paired comparison of two chains of effects over fresh noise realisations.
+
+    Both are re-evaluated with their whole-record parameters on fresh seed sets
+    (:meth:`GapProblem.reseeded`), paired per set; the original seeds are the first pair
+    (``gaps0``).  Batches of ``TIE_BATCH`` sets, up to ``TIE_MAX_SEEDS``, until a paired
+    t-test at level ``TIE_LEVEL`` decides.  Returns ``effects`` (the chains' first effects,
+    better first), ``gaps`` (per chain, one per realisation), ``difference`` (mean second
+    minus first), ``se``, ``t``, ``critical``, ``n_realisations`` and ``decided`` (False:
+    the record cannot tell the two apart; the order is then the given one).
+    """
+    from scipy import stats
+
+    gaps = [[gaps0[0]], [gaps0[1]]]
     parallel.start("tie check")
     done = 0
     while True:
@@ -590,8 +636,8 @@ def tie_test(problem, table, by_name, threshold, parallel):
         t = mean / se if se > 0 else (np.inf if mean else 0.0)
         if abs(t) > crit or done >= TIE_MAX_SEEDS:
             break
-    names = [a["effect"], b["effect"]]
-    if abs(t) > crit and mean < 0:  # the runner-up leaves less: it is the better one
+    names = [chains[0][0][0].name, chains[1][0][0].name]
+    if abs(t) > crit and mean < 0:  # the second chain leaves less: it is the better one
         names, gaps, mean, t = names[::-1], gaps[::-1], -mean, -t
     return {"effects": names, "gaps": [list(map(float, g)) for g in gaps],
             "difference": mean, "se": se, "t": float(t), "critical": crit,
@@ -830,6 +876,14 @@ def _run(real, simulator, sample_dt, candidates, random_state, n_jobs, n_sims, c
         parallel.start("pair check")
         swap = (_better_first(problem, table, evaluations, by_name, second, second_evals,
                               parallel) if second is not None else None)
+        if swap is None and second is not None and tie is None:
+            # both pairs may explain the record: can its realisations tell them apart?
+            s = second.iloc[0]
+            pair = chain + [(by_name[s["effect"]], dict(s["params"]))]
+            tie = pair_tie_test(problem, table, by_name, pair, second_evals[0],
+                                sig["threshold"], parallel)
+            if tie is not None and tie["effects"][0] != best:
+                swap = 1  # round 1's runner-up + the second effect is clearly better
         if swap is not None:  # round 1's runner-up pairs better with the second effect
             order = [swap] + [i for i in range(len(table)) if i != swap]
             table = table.iloc[order].reset_index(drop=True)
@@ -865,5 +919,4 @@ def _run(real, simulator, sample_dt, candidates, random_state, n_jobs, n_sims, c
                                   cv_shrink=cv_shrink, cross_validated=cv is not None,
                                   explained=status, reasons=reasons, lacking=lacking,
                                   checks=consistency(problem, chain),
-                                  tie=tie if (tie is not None and best == tie["effects"][0])
-                                  else None)
+                                  tie=_reported_tie(tie, best, combined))

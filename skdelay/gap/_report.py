@@ -223,16 +223,21 @@ class GapReport:
         if not t:
             return ""
         (a, b), (ga, gb) = t["effects"], t["gaps"]
+        if t.get("with"):  # two pairs: each with the same second effect
+            a, b = f"{a} + {t['with']}", f"{b} + {t['with']}"
         n = t["n_realisations"]
+        kind = "effects" if t.get("with") else "effect"
         gaps = (f"over {n} noise realisations {a} leaves a gap of {np.mean(ga):.3g} on "
                 f"average and {b} {np.mean(gb):.3g} (difference {t['difference']:.3g} +- "
                 f"{t['se']:.2g}")
         if t["decided"]:
-            return (f"The effect {a} is preferred to {b}, which also explains the record in-sample: "
-                    f"{gaps}, t = {t['t']:.2g} above {t['critical']:.2g}).")
-        return (f"The effect {b} does as well: {gaps}, t = {t['t']:.2g} within "
-                f"{t['critical']:.2g}), so this record cannot tell {a} from {b}; a longer "
-                "record would.")
+            return (f"The {kind} {a} are preferred to {b}, which also explain"
+                    if t.get("with") else
+                    f"The effect {a} is preferred to {b}, which also explains") + (
+                f" the record in-sample: {gaps}, t = {t['t']:.2g} above {t['critical']:.2g}).")
+        return (f"The {kind} {b} {'do' if t.get('with') else 'does'} as well: {gaps}, "
+                f"t = {t['t']:.2g} within {t['critical']:.2g}), so this record cannot tell "
+                f"{a} from {b}; a longer record may.")
 
     def headline(self):
         """Where the data differ, which effect explains it (or how much of it), how far."""

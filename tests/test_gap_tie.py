@@ -1,0 +1,119 @@
+"""Two candidates that each explain the record: the record decides, or says it cannot.
+
+One noise realisation of the simulator ensemble cannot rank two effects that
+both bring the gap within the no-gap level: on the electro-optic oscillator
+with dynamical noise, measurement noise leaves as small a gap.  The tie test
+re-evaluates both on fresh seed sets and reports a tie unless a paired t-test
+separates them.
+"""
+
+import numpy as np
+import pytest
+
+from skdelay.gap import _diagnose, diagnose_gap
+from skdelay.gap._diagnose import TIE_BATCH, TIE_MAX_SEEDS, tie_test
+from skdelay.gap._effects import get_effect
+from skdelay.systems import ElectroOpticOscillator, MackeyGlass
+
+NOISES = ["measurement_noise", "dynamical_noise"]
+
+
+def test_electro_optic_dynamical_noise_is_a_tie_between_the_noise_types():
+    eo = ElectroOpticOscillator()
+    real = eo.simulate(6000, sample_dt=0.25, random_state=3, dynamical_noise=0.1)
+    rep = diagnose_gap(real, eo, sample_dt=0.25, effects=NOISES, random_state=5,
+                       cross_validated=False)
+    tie = rep.tie
+    assert tie is not None
+    assert set(tie["effects"]) == set(NOISES)
+    assert tie["effects"][0] == rep.best_effect
+    assert not tie["decided"]
+    assert tie["n_realisations"] == TIE_MAX_SEEDS + 1  # undecided: every batch was drawn
+    assert abs(tie["t"]) <= tie["critical"]
+    assert all(len(g) == tie["n_realisations"] for g in tie["gaps"])
+    # the realisations scatter: the same candidate's gap varies by more than the difference
+    assert np.std(tie["gaps"][0]) > abs(tie["difference"])
+    assert "cannot tell" in rep.headline()
+    assert "cannot tell" in rep.summary()
+
+
+def test_no_tie_test_when_the_runner_up_does_not_explain_the_record():
+    mg = MackeyGlass()
+    x = mg.simulate(6000, random_state=3)
+    real = x + 0.05 * x.std() * np.random.default_rng(4).standard_normal(x.size)
+    rep = diagnose_gap(real, mg, effects=NOISES, random_state=5, cross_validated=False)
+    assert rep.best_effect == "measurement_noise"
+    # dynamical noise removes most of the gap but leaves far more than the threshold
+    second = rep.effects.iloc[1]
+    assert second["gap_after_fit"] > rep.significance["threshold"]
+    assert rep.tie is None
+    assert "cannot tell" not in rep.summary()
+
+
+class _Stages:
+    """Stands in for the diagnosis' joblib stages (serial)."""
+
+    def start(self, name):
+        self.name = name
+
+    def __call__(self, jobs):
+        return [f(*a, **k) for f, a, k in jobs]
+
+
+def _table(first="measurement_noise", second="dynamical_noise"):
+    import pandas as pd
+
+    return pd.DataFrame([
+        {"effect": first, "params": {}, "status": "ok", "shrink": 0.9, "gap_after_fit": 1.0},
+        {"effect": second, "params": {}, "status": "ok", "shrink": 0.8, "gap_after_fit": 1.5},
+    ])
+
+
+@pytest.mark.parametrize("offset, decided, first", [
+    (2.0, True, "measurement_noise"),   # the runner-up leaves more on every seed set
+    (-2.0, True, "dynamical_noise"),    # the runner-up leaves less: it goes first
+    (0.0, False, "measurement_noise"),  # no difference: a tie, the order stays
+])
+def test_tie_test_decides_by_the_paired_differences(monkeypatch, offset, decided, first):
+    rng = np.random.default_rng(0)
+
+    def fake_pair(problem, seed, chains):
+        g = 3.0 + rng.normal(0, 0.5)  # a shared realisation effect, as from common seeds
+        return [g, g + offset + rng.normal(0, 0.3)]
+
+    monkeypatch.setattr(_diagnose, "_evaluate_pair", fake_pair)
+    by_name = {n: get_effect(n) for n in NOISES}
+    tie = tie_test(None, _table(), by_name, threshold=5.0, parallel=_Stages())
+    assert tie["decided"] is decided
+    assert tie["effects"][0] == first
+    assert tie["n_realisations"] == (TIE_BATCH + 1 if decided else TIE_MAX_SEEDS + 1)
+    assert (abs(tie["t"]) > tie["critical"]) is decided
+
+
+def test_tie_test_is_not_asked_when_a_candidate_leaves_more_than_the_threshold(monkeypatch):
+    def never(*args):
+        raise AssertionError("no realisation should be drawn")
+
+    monkeypatch.setattr(_diagnose, "_evaluate_pair", never)
+    by_name = {n: get_effect(n) for n in NOISES}
+    table = _table()
+    table.loc[1, "gap_after_fit"] = 6.0
+    assert tie_test(None, table, by_name, threshold=5.0, parallel=_Stages()) is None
+    table = _table()
+    table.loc[1, "shrink"] = 0.1  # removes too little to be an explanation
+    assert tie_test(None, table, by_name, threshold=5.0, parallel=_Stages()) is None
+
+
+def test_a_tie_is_reported_only_for_the_explanation_given():
+    from skdelay.gap._diagnose import _reported_tie
+
+    single = {"effects": ["measurement_noise", "dynamical_noise"], "decided": False}
+    pair = dict(single, **{"with": "periodic_interference"})
+    combined = {"effects": ["measurement_noise", "periodic_interference"]}
+    assert _reported_tie(single, "measurement_noise", None) is single
+    assert _reported_tie(single, "dynamical_noise", None) is None  # a later swap
+    assert _reported_tie(single, "measurement_noise", combined) is None  # a pair was given
+    assert _reported_tie(pair, "measurement_noise", combined) is pair
+    other = {"effects": ["measurement_noise", "clipping"]}
+    assert _reported_tie(pair, "measurement_noise", other) is None  # another second effect
+    assert _reported_tie(None, "measurement_noise", None) is None
