@@ -415,6 +415,9 @@ def run_case(case, n, sample_dt):
     out["explained"] = rep.explained
     # an undecided tie test: the record cannot tell the best effect from this one
     out["tie"] = (rep.tie["effects"][1] if rep.tie and not rep.tie["decided"] else None)
+    out["tie_test"] = ("-" if rep.tie is None else
+                       f"{'decided' if rep.tie['decided'] else 'tie'} "
+                       f"({rep.tie['n_realisations']} realisations)")
     hums = [params for name, params in case["chain"] if name == "periodic_interference"]
     if hums:
         out["hum_cycles"] = hums[0]["frequency"] * n * sample_dt
@@ -677,10 +680,15 @@ def main(argv=None):
           f"{mod[mod.hit].recovered.mean():.0%}; median shrink {mod[mod.hit].shrink.median():.2f}")
     print(f"weak: right effect first {single[single.strength == 'weak'].hit.mean():.0%}")
     tied = df[df.tie.notna()]
-    among = [t in (f, o) for t, f, o in zip(tied.true, tied.found, tied.tie)]
-    print(f"reported as a tie (the record cannot tell the best effect from a runner-up): "
-          f"{len(tied)} of {len(df)} cases, the hidden effect among the two in "
-          f"{sum(among)}; of these, first {int(sum(tied.true == tied.found))}")
+    # a tie of pairs shares the second effect: the hidden pair is one of the two pairs
+    among = [set(t.split("+")) in ({f, o}, {f, s}, {o, s}) if "+" in t else t in (f, o)
+             for t, f, o, s in zip(tied.true, tied.found, tied.tie, tied.second)]
+    asked = df[df.tie_test != "-"]
+    print(f"tie test asked in {len(asked)} of {len(df)} cases: "
+          + (", ".join(f"{r.system} {r.true} -> {r.tie_test}" for r in asked.itertuples())
+             or "none"))
+    print(f"reported as a tie (the record cannot tell the best explanation from a runner-up): "
+          f"{len(tied)} of {len(df)} cases, the hidden cause among the two in {sum(among)}")
     for kind, part in (("no-effect", ctrl[ctrl.strength == "-"]),
                        ("ADC-count", ctrl[ctrl.strength == "adc"])):
         print(f"{kind} controls reported as None: {(part.found == 'None').mean():.0%} "
