@@ -416,7 +416,8 @@ def run_case(case, n, sample_dt):
     # an undecided tie test: the record cannot tell the best effect from this one
     out["tie"] = (rep.tie["effects"][1] if rep.tie and not rep.tie["decided"] else None)
     out["tie_test"] = ("-" if rep.tie is None else
-                       f"{'decided' if rep.tie['decided'] else 'tie'} "
+                       f"{'decided' if rep.tie['decided'] else 'tie'}"
+                       f"{', swapped' if rep.tie.get('swapped') else ''} "
                        f"({rep.tie['n_realisations']} realisations)")
     hums = [params for name, params in case["chain"] if name == "periodic_interference"]
     if hums:

@@ -87,6 +87,7 @@ def test_tie_test_decides_by_the_paired_differences(monkeypatch, offset, decided
     by_name = {n: get_effect(n) for n in NOISES}
     tie = tie_test(None, _table(), by_name, threshold=5.0, parallel=_Stages())
     assert tie["decided"] is decided
+    assert tie["swapped"] is (offset < 0)
     assert tie["effects"][0] == first
     assert tie["n_realisations"] == (TIE_BATCH + 1 if decided else TIE_MAX_SEEDS + 1)
     assert (abs(tie["t"]) > tie["critical"]) is decided

@@ -637,11 +637,12 @@ def compare_chains(problem, chains, gaps0, parallel):
         if abs(t) > crit or done >= TIE_MAX_SEEDS:
             break
     names = [chains[0][0][0].name, chains[1][0][0].name]
-    if abs(t) > crit and mean < 0:  # the second chain leaves less: it is the better one
+    swapped = bool(abs(t) > crit and mean < 0)
+    if swapped:  # the second chain leaves less: it is the better one
         names, gaps, mean, t = names[::-1], gaps[::-1], -mean, -t
     return {"effects": names, "gaps": [list(map(float, g)) for g in gaps],
             "difference": mean, "se": se, "t": float(t), "critical": crit,
-            "n_realisations": int(n), "decided": bool(abs(t) > crit)}
+            "n_realisations": int(n), "decided": bool(abs(t) > crit), "swapped": swapped}
 
 
 def diagnose_gap(real, simulator, *, sample_dt=1.0, effects=None, random_state=None,
