@@ -659,7 +659,10 @@ def diagnose_gap(real, simulator, *, sample_dt=1.0, effects=None, random_state=N
     matches the real data, and ranked by how much of the gap it removes.
     (3) *How far*: ``gap_before``, ``gap_after`` and ``shrink`` per effect, the
     residual after the best one and, if that is still significant, a second
-    effect fitted on top (combined causes).
+    effect fitted on top (combined causes).  When the two best explanations
+    each bring the gap within the no-gap threshold, both are re-evaluated on
+    fresh noise realisations and ``report.tie`` says whether the record can
+    tell them apart (:func:`tie_test`).
 
     Gain and offset of ``real`` are nuisance: every comparison is made on
     z-scored series and locations are reported in the units of ``real``.
