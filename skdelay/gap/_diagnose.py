@@ -130,9 +130,6 @@ def significance(problem):
 #: within this (relative) tolerance or three of their standard errors: a 1.08 factor on
 #: Mackey-Glass moves the dip by 1.3 samples, whose centre is good to ~0.2 samples (1 %)
 TB_TOL = 0.02
-#: a fitted delay agrees with the data's dip when the shifts differ by at most this many
-#: samples or DIP_Z of the dips' combined standard errors (the fit scans +-1.5 samples)
-DELAY_TOL = 1.0
 
 
 def _peak_frequency(x, sample_dt, nperseg=4096):
@@ -180,7 +177,7 @@ def consistency(problem, chain):
     the fits used).
     """
     from ._signature import centroid
-    from ._where import DIP_Z, dip_comparable
+    from ._where import delay_tolerance, dip_comparable
 
     out = []
     dt = problem.sample_dt
@@ -189,7 +186,7 @@ def consistency(problem, chain):
             tau0 = float(problem.simulator.params["tau"])
             fit = (float(params["tau"]) - tau0) / dt
             seen = problem.dip_real - problem.dip_sim
-            tol = max(DELAY_TOL, DIP_Z * problem.dip_spread)
+            tol = delay_tolerance(problem)
             comparable = dip_comparable(problem)
             ok = bool(comparable and abs(fit - seen) <= tol)
             out.append((eff.name, ok,

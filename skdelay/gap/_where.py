@@ -128,6 +128,17 @@ def dip_comparable(problem):
     return bool(problem.dip.significant and rel_real >= DIP_DEPTH_RATIO * rel_sim)
 
 
+#: a delay agrees with the data's dip when the shift it makes differs from the dips' shift by
+#: at most this many samples or DIP_Z of the dips' combined standard errors
+DELAY_TOL = 1.0
+
+
+def delay_tolerance(problem):
+    """Samples by which a fitted delay may move the dip away from where the real data put it
+    (the consistency check of a delay mismatch, and the range its fit searches)."""
+    return float(max(DELAY_TOL, DIP_Z * problem.dip_spread))
+
+
 def dip_shift_significant(problem):
     """Does the real data's forecast-error dip sit elsewhere than the model's?"""
     if not dip_comparable(problem):
