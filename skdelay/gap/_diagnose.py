@@ -877,8 +877,9 @@ def _run(real, simulator, sample_dt, candidates, random_state, n_jobs, n_sims, c
         parallel.start("pair check")
         swap = (_better_first(problem, table, evaluations, by_name, second, second_evals,
                               parallel) if second is not None else None)
-        if swap is None and second is not None and tie is None:
-            # both pairs may explain the record: can its realisations tell them apart?
+        if swap is None and second is not None:
+            # both pairs may explain the record: can its realisations tell them apart?  (A
+            # tie test of round 1 alone is moot now that the explanation is a pair.)
             s = second.iloc[0]
             pair = chain + [(by_name[s["effect"]], dict(s["params"]))]
             tie = pair_tie_test(problem, table, by_name, pair, second_evals[0],
