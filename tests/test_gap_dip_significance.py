@@ -52,3 +52,25 @@ def test_delay_mismatch_is_named_and_fitted(shifted):
     tau = rep.effects.set_index("effect").loc["delay_mismatch", "params"]["tau"]
     assert abs(tau - TRUE_TAU) <= DT  # within one sample
     assert "forecast-error dip lies outside the runs' scatter" in rep.summary()
+
+
+def _context(spread, comparable=True):
+    from types import SimpleNamespace
+
+    dip = SimpleNamespace(significant=comparable, depth=0.2, baseline=1.0)
+    return SimpleNamespace(sample_dt=0.5, dip=dip, dip_spread=spread,
+                           sim_dips=[SimpleNamespace(depth=0.2, baseline=1.0)])
+
+
+@pytest.mark.parametrize("spread, comparable, half", [
+    (0.1, True, 1.0),    # a well placed dip: only the delays it allows (1 sample)
+    (0.4, True, 1.2),    # DIP_Z = 3 standard errors of the dips
+    (0.8, True, 1.5),    # never wider than the default 1.5 samples
+    (0.1, False, 1.5),   # a dip that cannot be placed: the default
+])
+def test_delay_search_stays_within_what_the_dip_allows(spread, comparable, half):
+    from skdelay.gap import DelayMismatch
+
+    lo, hi = DelayMismatch().search_bounds({"tau": 3.0}, _context(spread, comparable))["tau"]
+    assert lo == pytest.approx(3.0 - half * 0.5)
+    assert hi == pytest.approx(3.0 + half * 0.5)
