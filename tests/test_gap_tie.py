@@ -120,3 +120,48 @@ def test_a_tie_is_reported_only_for_the_explanation_given():
     other = {"effects": ["measurement_noise", "clipping"]}
     assert _reported_tie(pair, "measurement_noise", other) is None  # another second effect
     assert _reported_tie(None, "measurement_noise", None) is None
+
+
+def test_pair_tie_test_takes_round_ones_best_alternative_to_the_first_effect(monkeypatch):
+    """The second effect (a hum) may rank second in round 1; the alternative pair is then
+    the next candidate (the other noise type) with the same second effect on top."""
+    from types import SimpleNamespace
+
+    import pandas as pd
+
+    from skdelay.gap._diagnose import pair_tie_test
+    from skdelay.gap._fit import FitResult
+
+    names = NOISES + ["periodic_interference"]
+    by_name = {n: get_effect(n) for n in names}
+    table = pd.DataFrame([
+        {"effect": "measurement_noise", "params": {}, "status": "ok", "shrink": 0.9},
+        {"effect": "periodic_interference", "params": {}, "status": "ok", "shrink": 0.8},
+        {"effect": "dynamical_noise", "params": {}, "status": "ok", "shrink": 0.7},
+    ])
+    fitted = []
+
+    def fake_fit(effect, problem, base_chain=(), final=True):
+        fitted.append((effect.name, [e.name for e, _ in base_chain]))
+        return FitResult(effect=effect.name, target=effect.target, params={"a": 1.0},
+                         gap_after=1.2)
+
+    seen = []
+
+    def fake_pair(problem, seed, chains):
+        seen.append([[e.name for e, _ in c] for c in chains])
+        return [1.0, 1.0 + 0.1 * (-1) ** seed]
+
+    monkeypatch.setattr(_diagnose, "fit_effect", fake_fit)
+    monkeypatch.setattr(_diagnose, "_evaluate_pair", fake_pair)
+    chain = [(by_name["measurement_noise"], {}), (by_name["periodic_interference"], {})]
+    tie = pair_tie_test(None, table, by_name, chain, SimpleNamespace(gap=1.0), 5.0, _Stages())
+    assert fitted == [("periodic_interference", ["dynamical_noise"])]
+    assert seen[0] == [["measurement_noise", "periodic_interference"],
+                       ["dynamical_noise", "periodic_interference"]]
+    assert tie["with"] == "periodic_interference"
+    assert tie["effects"] == ["measurement_noise", "dynamical_noise"]
+    assert not tie["decided"]
+    # a pair that leaves more than the threshold asks nothing
+    assert pair_tie_test(None, table, by_name, chain, SimpleNamespace(gap=6.0), 5.0,
+                         _Stages()) is None

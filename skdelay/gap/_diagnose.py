@@ -580,15 +580,20 @@ def tie_test(problem, table, by_name, threshold, parallel):
 
 def pair_tie_test(problem, table, by_name, chain, after, threshold, parallel):
     """The tie test of the combined explanation: best + second effect against round 1's
-    runner-up + the same second effect (refitted on top of it), when both pairs leave an
-    in-sample gap within ``threshold``.  A dict (with ``with``: the second effect), or None.
+    best other candidate + the same second effect (refitted on top of it), when both pairs
+    leave an in-sample gap within ``threshold``.  A dict (with ``with``: the second
+    effect), or None.
     """
-    if len(table) < 2 or len(chain) != 2 or not after.gap <= threshold:
+    if len(chain) != 2 or not after.gap <= threshold:
         return None
-    b = table.iloc[1]
     second = chain[1][0]
-    if not _eligible(b) or b["effect"] == second.name:
+    # round 1's best alternative to the first effect (the second effect itself may rank
+    # second in round 1: a hum under noise removes much of the gap on its own)
+    rows = [table.iloc[i] for i in range(1, len(table))
+            if table.iloc[i]["effect"] != second.name]
+    if not rows or not _eligible(rows[0]):
         return None
+    b = rows[0]
     base = [(by_name[b["effect"]], dict(b["params"]))]
     (res,) = parallel([delayed(fit_effect)(second, problem, base)])
     if not (res.ok and res.gap_after <= threshold):
@@ -894,7 +899,8 @@ def _run(real, simulator, sample_dt, candidates, random_state, n_jobs, n_sims, c
             tie = pair_tie_test(problem, table, by_name, pair, second_evals[0],
                                 sig["threshold"], parallel)
             if tie is not None and tie["effects"][0] != best:
-                swap = 1  # round 1's runner-up + the second effect is clearly better
+                # round 1's alternative + the second effect is clearly better
+                swap = int(np.flatnonzero(table["effect"].to_numpy() == tie["effects"][0])[0])
         if swap is not None:  # round 1's runner-up pairs better with the second effect
             order = [swap] + [i for i in range(len(table)) if i != swap]
             table = table.iloc[order].reset_index(drop=True)
