@@ -709,8 +709,10 @@ def diagnose_gap(real, simulator, *, sample_dt=1.0, effects=None, random_state=N
         Score every candidate on the half of the record it was not fitted on
         (first half fit, second half score; records of at least 4000
         samples): ``effects.shrink`` and ``gap_after`` are then the
-        cross-validated numbers, so a flexible effect cannot win by fitting
-        the noise.  The reported parameters are fitted on the whole record.
+        cross-validated numbers (capped at the in-sample share: an explanation
+        must hold on the whole record too), so a flexible effect cannot win by
+        fitting the noise.  The reported parameters are fitted on the whole
+        record.
     time_unit : {None, "s", "ms", "us", "ns", ...}, default=None
         The simulator's time unit (same as a unit given with ``sample_dt``);
         None: unknown, frequencies in cycles per time unit.
