@@ -20,7 +20,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 __all__ = ["atomic_path", "check_writable", "clean_stale_temporaries", "make_temporary",
-           "owner_tag", "write_bytes", "write_text"]
+           "owner_tag", "remove_own_temporaries", "write_bytes", "write_text"]
 
 #: ``.NAME.skd<pid>x<start>_<random>.<kind>``; NAME may itself contain dots, so the
 #: pattern is anchored at the end.  ``tmp`` = output being built, ``old`` = the
@@ -70,6 +70,10 @@ def _owner_alive(pid, start):
     return start == 0 or now == 0 or now == start
 
 
+#: parent directories in which this process created temporaries (see remove_own_temporaries)
+_DIRECTORIES = set()
+
+
 def clean_stale_temporaries(directory):
     """Remove the leftovers of killed skdelay runs in ``directory``; return their names.
 
@@ -89,6 +93,28 @@ def clean_stale_temporaries(directory):
     list of str
         Names of the removed (or restored) entries.
     """
+    return _clean(directory, lambda pid, start: not _owner_alive(pid, start))
+
+
+def remove_own_temporaries():
+    """Remove the temporaries this process created and still holds; return their names.
+
+    The safety net of a run that is terminated (SIGTERM, Ctrl-C): a signal can
+    land after a temporary is created and before the code that would remove it
+    on failure has it in hand (inside ``tempfile.mkstemp``, or between it and
+    the ``try`` of :func:`atomic_path`).  A ``.old`` output moved aside by an
+    interrupted ``--force`` swap is moved back when its target is missing.
+    """
+    pid, start = os.getpid(), _start_time(os.getpid())
+    removed = []
+    for directory in sorted(_DIRECTORIES):
+        removed += _clean(directory, lambda p, s: p == pid and (s == start or s == 0))
+    return removed
+
+
+def _clean(directory, remove):
+    """Remove (or restore) the skdelay temporaries in ``directory`` whose owner
+    ``(pid, start)`` satisfies ``remove``; return their names."""
     directory = Path(directory)
     removed = []
     try:
@@ -97,7 +123,7 @@ def clean_stale_temporaries(directory):
         return removed
     for entry in entries:
         match = _TEMP_NAME.match(entry.name)
-        if match is None or _owner_alive(int(match["pid"]), int(match["start"])):
+        if match is None or not remove(int(match["pid"]), int(match["start"])):
             continue
         path = Path(entry.path)
         target = directory / match["name"]
@@ -137,6 +163,7 @@ def make_temporary(path, *, kind="tmp", directory=False):
     """
     path = Path(path)
     clean_stale_temporaries(path.parent)
+    _DIRECTORIES.add(str(path.parent.absolute()))  # before creating: see remove_own_temporaries
     prefix = f".{path.name}.{owner_tag()}"
     if directory:
         return Path(tempfile.mkdtemp(prefix=prefix, suffix=f".{kind}", dir=path.parent))

@@ -25,6 +25,8 @@ import time
 from contextlib import contextmanager
 from pathlib import Path
 
+from ._atomic import remove_own_temporaries
+
 EXIT_OK, EXIT_FAILURE, EXIT_USAGE = 0, 1, 2
 #: shell convention 128 + signal number
 EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143
@@ -570,9 +572,11 @@ def main(argv=None):
         with _sigterm_unwinds():
             run()
     except KeyboardInterrupt:
+        remove_own_temporaries()
         print(f"{prog}: interrupted; nothing was written", file=sys.stderr)
         return EXIT_INTERRUPTED
     except _Terminated:
+        remove_own_temporaries()  # one created just before the signal may not be unwound
         print(f"{prog}: terminated; nothing was written", file=sys.stderr)
         return EXIT_TERMINATED
     except UsageError as exc:

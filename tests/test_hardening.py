@@ -19,6 +19,7 @@ from skdelay._atomic import (
     clean_stale_temporaries,
     make_temporary,
     owner_tag,
+    remove_own_temporaries,
 )
 from skdelay._checks import sample_dt_from_index
 from skdelay._io import (
@@ -557,6 +558,24 @@ def test_runs_that_would_hang_are_refused_up_front(tmp_path, capsys):
                         "-o", tmp_path / "x.npy"], capsys)
     assert_usage_error(code, err, "integration steps", "use fewer samples")
     assert listing(tmp_path) == []
+
+
+def test_a_terminated_run_removes_the_temporaries_it_created(tmp_path):
+    # a signal can land between the creation of a temporary and the try that would unwind
+    # it (CI caught one at stop 23): the CLI then removes whatever this process created
+    target = tmp_path / "out.csv"
+    tmp = make_temporary(target)  # created, never handed to atomic_path
+    other = tmp_path / f".out.csv.{owner_tag(1)}abc.tmp"  # a live process's work (pid 1)
+    other.write_text("in progress")
+    old = make_temporary(tmp_path / "report", kind="old", directory=True)
+    (old / "d").mkdir()
+    (old / "d" / "results.json").write_text("{}")  # an output moved aside by --force
+    removed = remove_own_temporaries()
+    assert tmp.name in removed and old.name in removed
+    assert not tmp.exists() and not old.exists()
+    assert other.exists()  # another process's temporary is never touched
+    assert (tmp_path / "report" / "results.json").read_text() == "{}"  # moved back
+    assert remove_own_temporaries() == []
 
 
 @pytest.mark.slow
