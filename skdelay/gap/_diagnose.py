@@ -531,12 +531,12 @@ def _better_first(problem, table, evaluations, by_name, second, second_evals, pa
 #: alone brings the record's in-sample gap within the no-gap threshold: one realisation
 #: cannot rank them.  On the electro-optic oscillator (6000 samples at step 0.25, moderate
 #: cases drawn as in benchmarks/gap_withheld.py) the gap left by the true dynamical noise
-#: (0.102) was 0.10,
-#: 0.51, 3.11, 1.50, 0.20 on five seed sets and that of measurement noise 0.49, 1.80, 0.70,
-#: 2.45, 0.33: the single cross-validated ranking put measurement noise first (shrink 0.91 vs
-#: 0.65).  With true measurement noise the differences were one-sided (4 of 5) but still
-#: within the scatter of five.  So realisations come in batches of TIE_BATCH, up to
-#: TIE_MAX_SEEDS fresh seed sets, until a paired t-test at level TIE_LEVEL decides.
+#: (0.102) was 0.10, 0.51, 3.11, 1.50, 0.20 on five seed sets and that of measurement noise
+#: 0.49, 1.80, 0.70, 2.45, 0.33: the single cross-validated ranking put measurement noise
+#: first (shrink 0.91 vs 0.65).  With true measurement noise the differences were one-sided
+#: (4 of 5) but still within the scatter of five.  So realisations come in batches of
+#: TIE_BATCH, up to TIE_MAX_SEEDS fresh seed sets, until a paired t-test at level TIE_LEVEL
+#: decides.
 TIE_BATCH = 4
 TIE_MAX_SEEDS = 12
 TIE_LEVEL = 0.95
