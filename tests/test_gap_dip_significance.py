@@ -54,11 +54,13 @@ def test_delay_mismatch_is_named_and_fitted(shifted):
     assert "forecast-error dip lies outside the runs' scatter" in rep.summary()
 
 
-def _context(spread, comparable=True):
+def _context(spread, comparable=True, delay_samples=40.0):
     from types import SimpleNamespace
 
     dip = SimpleNamespace(significant=comparable, depth=0.2, baseline=1.0)
-    return SimpleNamespace(sample_dt=0.5, dip=dip, dip_spread=spread,
+    return SimpleNamespace(sample_dt=0.5, dip=dip, dip_spread=spread, dip_real=30.0,
+                           dip_sim=40.0, delay_samples=delay_samples,
+                           simulator=SimpleNamespace(params={"tau": 0.5 * delay_samples}),
                            sim_dips=[SimpleNamespace(depth=0.2, baseline=1.0)])
 
 
@@ -66,11 +68,20 @@ def _context(spread, comparable=True):
     (0.1, True, 1.0),    # a well placed dip: only the delays it allows (1 sample)
     (0.4, True, 1.2),    # DIP_Z = 3 standard errors of the dips
     (0.8, True, 1.5),    # never wider than the default 1.5 samples
-    (0.1, False, 1.5),   # a dip that cannot be placed: the default
+    (0.1, False, 10.0),  # a dip that cannot be placed: the whole dip window (40 / 4 samples)
 ])
 def test_delay_search_stays_within_what_the_dip_allows(spread, comparable, half):
     from skdelay.gap import DelayMismatch
 
-    lo, hi = DelayMismatch().search_bounds({"tau": 3.0}, _context(spread, comparable))["tau"]
-    assert lo == pytest.approx(3.0 - half * 0.5)
-    assert hi == pytest.approx(3.0 + half * 0.5)
+    lo, hi = DelayMismatch().search_bounds({"tau": 20.0}, _context(spread, comparable))["tau"]
+    assert lo == pytest.approx(20.0 - half * 0.5)
+    assert hi == pytest.approx(20.0 + half * 0.5)
+
+
+@pytest.mark.parametrize("comparable, tau", [(True, 15.0), (False, 20.0)])
+def test_delay_guess_moves_by_the_dip_shift_only_when_the_dip_is_placed(comparable, tau):
+    """The real dip 10 samples below the model's moves the guess by 5 time units (step
+    0.5) when the dips compare; a dip that cannot be placed leaves the model's delay."""
+    from skdelay.gap import DelayMismatch
+
+    assert DelayMismatch().initial(_context(0.1, comparable))["tau"] == pytest.approx(tau)

@@ -19,6 +19,7 @@ from ._effects import CandidateFailed, EffectFailed, SimulationFailed, call_hook
 from ._indicators import ensemble_stats, indicator_gap, make_indicators, profiles, zscores
 from ._lines import find_lines, spectrum_view
 from ._signature import zscore
+from ._where import dip_window
 
 __all__ = ["Evaluation", "GapProblem", "SimulationFailed", "run_simulator"]
 
@@ -172,11 +173,9 @@ class GapProblem:
 
         taus, real_curve = fe_scan(self.real, self.delay_samples)
         sim_curves = [fe_curve(x, taus) for x in self.base[: self.DIP_RUNS]]
-        # the delay's dip is sought near the model's delay (+-max(6, delay / 4) samples, as
-        # wide as a delay mismatch the fit considers): a strong hum makes a deeper dip of its
-        # own at a quarter of its period, which is not the delay
+        # the delay's dip is sought near the model's delay (see _where.dip_window)
         d0 = self.delay_samples
-        near = np.abs(taus - d0) <= max(6.0, d0 / 4.0)
+        near = np.abs(taus - d0) <= dip_window(d0)
         if near[int(np.argmin(real_curve))]:
             near[:] = True  # the deepest dip is the delay's: the whole curve gives the baseline
         self.dip = locate_dip(taus[near], real_curve[near])

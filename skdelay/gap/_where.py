@@ -106,6 +106,20 @@ def _note(name, z, label):
     return f"real {label} {word} than simulated"
 
 
+#: the delay's dip is sought within this many samples of the model's delay, or ...
+DIP_WINDOW_MIN = 6.0
+#: ... this fraction of it when larger: as wide as a delay mismatch the fit considers (a
+#: strong hum makes a deeper dip of its own at a quarter of its period, which is not the
+#: delay's)
+DIP_WINDOW_FRACTION = 0.25
+
+
+def dip_window(delay_samples):
+    """Half-width (samples) of the delays around the model's delay where its dip is sought
+    and, when the real data's dip cannot be placed, where a delay mismatch is searched."""
+    return float(max(DIP_WINDOW_MIN, DIP_WINDOW_FRACTION * float(delay_samples)))
+
+
 #: the real dip differs from the model's when the centres are this many of their combined
 #: standard errors apart (bootstrap errors of the centres and the runs' scatter) ...
 DIP_Z = 3.0
