@@ -16,7 +16,14 @@ from ._problem import GapProblem
 from ._report import GapReport
 from ._signature import mean_std
 from ._units import parse_sample_dt
-from ._where import dip_shift_significant, localise
+from ._where import (
+    TB_TOL,
+    delay_tolerance,
+    dip_comparable,
+    dip_factor,
+    dip_shift_significant,
+    localise,
+)
 
 #: the gap is significant above MIN_GAP + NULL_FACTOR * (median leave-one-out gap of the runs)
 MIN_GAP = 5.0
@@ -126,12 +133,6 @@ def significance(problem):
             "significant": bool(gap > threshold or max_z > Z_LOCAL or lines or dip_shift)}
 
 
-#: a timebase factor agrees with the data when the dip and the spectral features move by it
-#: within this (relative) tolerance or three of their standard errors: a 1.08 factor on
-#: Mackey-Glass moves the dip by 1.3 samples, whose centre is good to ~0.2 samples (1 %)
-TB_TOL = 0.02
-
-
 def _peak_frequency(x, sample_dt, nperseg=4096):
     """Frequency of the highest spectral peak (parabolic interpolation of the log power)."""
     from scipy import signal
@@ -177,8 +178,6 @@ def consistency(problem, chain):
     the fits used).
     """
     from ._signature import centroid
-    from ._where import delay_tolerance, dip_comparable
-
     out = []
     dt = problem.sample_dt
     for eff, params in chain:
@@ -197,10 +196,9 @@ def consistency(problem, chain):
         elif eff.name == "timebase_mismatch":
             factor = float(params["factor"])
             checks = []
-            if dip_comparable(problem):
-                ratio = problem.dip_sim / problem.dip_real
-                se = ratio * problem.dip_spread / problem.dip_real
-                checks.append(("forecast-error dip", ratio, max(TB_TOL, 3 * se)))
+            by_dip = dip_factor(problem)
+            if by_dip is not None:
+                checks.append(("forecast-error dip", *by_dip))
             n = problem.n_samples
             c_runs = np.array([centroid(x[:n], dt) for x in problem.base])
             c_sim = float(c_runs.mean())

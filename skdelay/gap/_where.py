@@ -153,6 +153,24 @@ def delay_tolerance(problem):
     return float(max(DELAY_TOL, DIP_Z * problem.dip_spread))
 
 
+#: a timebase factor agrees with the data when the dip and the spectral features move by it
+#: within this (relative) tolerance or three of their standard errors: a 1.08 factor on
+#: Mackey-Glass moves the dip by 1.3 samples, whose centre is good to ~0.2 samples (1 %)
+TB_TOL = 0.02
+
+
+def dip_factor(problem):
+    """``(factor, tolerance)``: the timebase factor by which the model's forecast-error dip
+    must be stretched to reach the real data's (``dip_sim / dip_real``: real samples are
+    ``factor`` nominal steps apart), and how far a factor may differ from it (``TB_TOL``
+    or ``DIP_Z`` standard errors of the ratio); None when the dips do not compare."""
+    if not dip_comparable(problem):
+        return None
+    ratio = problem.dip_sim / problem.dip_real
+    se = ratio * problem.dip_spread / problem.dip_real
+    return float(ratio), float(max(TB_TOL, DIP_Z * se))
+
+
 def dip_shift_significant(problem):
     """Does the real data's forecast-error dip sit elsewhere than the model's?"""
     if not dip_comparable(problem):
