@@ -169,9 +169,11 @@ class PeriodicInterference(Effect):
 
     def initial(self, problem):
         """The strongest line of the whole-record multitaper search (any frequency from a few
-        cycles per record to Nyquist), else the Welch-based :meth:`guess`."""
-        if problem.lines:
-            return self._line_params(problem, problem.lines[0])
+        cycles per record to Nyquist), else its best sub-threshold candidate, else the
+        Welch-based :meth:`guess`."""
+        hints = getattr(problem, "line_hints", [])
+        if problem.lines or hints:
+            return self._line_params(problem, (problem.lines or hints)[0])
         return super().initial(problem)
 
     def _line_params(self, problem, line):
@@ -192,9 +194,11 @@ class PeriodicInterference(Effect):
         explains best: on Mackey-Glass with dynamical noise (0.0046) and a 0.38-std
         hum (6000 samples), three weak lines the noise raised ranked above the hum
         (z 2.77, harmonic F 118), and the hum was fitted at one of them (0.032 instead
-        of 0.0143, amplitude 0.05) and then missed.  One gap evaluation per line.
+        of 0.0143, amplitude 0.05) and then missed.  One gap evaluation per line, and
+        per sub-threshold candidate (:func:`skdelay.gap._lines.line_scan`).
         """
-        starts = [guess] + [self._line_params(problem, line) for line in problem.lines[1:]]
+        candidates = list(problem.lines) + list(getattr(problem, "line_hints", []))
+        starts = [guess] + [self._line_params(problem, line) for line in candidates[1:]]
         if len(starts) > 1:
             guess = starts[int(np.argmin([objective(p) for p in starts]))]
         return super().search(problem, guess, objective)

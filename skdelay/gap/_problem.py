@@ -17,7 +17,7 @@ from joblib import Parallel, delayed
 from .._checks import check_random_state
 from ._effects import CandidateFailed, EffectFailed, SimulationFailed, call_hook
 from ._indicators import ensemble_stats, indicator_gap, make_indicators, profiles, zscores
-from ._lines import find_lines, spectrum_view
+from ._lines import line_scan, spectrum_view
 from ._signature import zscore
 from ._where import dip_window
 
@@ -115,7 +115,7 @@ class GapProblem:
 
     def __init__(self, real, simulator, *, sample_dt=1.0, n_sims=6, search_sims=2,
                  search_length=10_000, random_state=None, n_jobs=None, time_unit=None,
-                 runs=None, scan_dips=True, lines=None):
+                 runs=None, scan_dips=True, lines=None, line_hints=None):
         self.real = real
         self.time_unit = time_unit
         self.simulator = simulator
@@ -134,7 +134,11 @@ class GapProblem:
                 for s in self.sim_seeds)
         self.base = runs
         # lines anywhere from a few cycles per record to Nyquist (a 50 Hz hum at 1 MHz)
-        self.lines = find_lines(real, runs, self.sample_dt) if lines is None else list(lines)
+        # and sub-threshold candidates, where a hum fit may also start (_lines.line_scan)
+        if lines is None:
+            self.lines, self.line_hints = line_scan(real, runs, self.sample_dt)
+        else:
+            self.lines, self.line_hints = list(lines), list(line_hints or [])
         self.spectrum_view = spectrum_view(real, runs[:2], self.sample_dt) if scan_dips else None
         self.indicators = make_indicators(real, runs, self.sample_dt, self.delay_samples,
                                           self.lines)
@@ -315,7 +319,8 @@ class GapProblem:
             self, parent.real[lo:hi], parent.simulator, sample_dt=parent.sample_dt,
             n_sims=len(parent.base), search_sims=parent.search_sims,
             search_length=parent.search_length, random_state=0, time_unit=parent.time_unit,
-            runs=[x[lo:hi] for x in parent.base], scan_dips=scan, lines=parent.lines)
+            runs=[x[lo:hi] for x in parent.base], scan_dips=scan, lines=parent.lines,
+            line_hints=parent.line_hints)
         # the parent's seeds: the halves' evaluations share the parent's random numbers
         self.sim_seeds, self.effect_seed = parent.sim_seeds, parent.effect_seed
 
