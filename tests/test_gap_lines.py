@@ -97,3 +97,39 @@ def test_noise_does_not_mask_a_hum():
     assert found == {"measurement_noise", "periodic_interference"}, rep.effects
     params = (rep.combined["params"][rep.combined["effects"].index("periodic_interference")])
     assert abs(params["frequency"] - 0.1123) < 1.0 / n
+
+
+def test_sub_threshold_candidates_pass_the_gates_and_keep_clear_of_the_lines():
+    """Hints (starting points of a hum fit) pass both gates but not the family-wise test,
+    stay more than a line's width away from every line, and are at most MAX_HINTS; a 1 %
+    hum under 2 % noise is a line, not a hint."""
+    from skdelay.gap import _lines
+
+    n = 8000
+    sims = [MG.simulate(n, random_state=s) for s in (531, 532, 533, 534)]
+    real = hum(MG.simulate(n, random_state=535), 2400.0 / n, 0.01)
+    real = real + 0.02 * real.std() * np.random.default_rng(536).standard_normal(n)
+    lines, hints = _lines.line_scan(real, sims, 1.0)
+    assert lines == find_lines(real, sims, 1.0)
+    assert len(lines) == 1 and abs(lines[0].frequency - 2400.0 / n) < 1.0 / n
+    assert hints  # on this record a noise bin at 1194 cycles passes the gates
+    assert len(hints) <= _lines.MAX_HINTS
+    for h in hints:
+        assert h.p_value < _lines.F_GATE  # (its cluster's best F; z passed at some bin)
+        assert abs(h.frequency - lines[0].frequency) > 2 * _lines.NW / n
+
+
+def test_hum_fit_starts_from_a_hint_when_no_line_is_found():
+    from types import SimpleNamespace
+
+    from skdelay.gap import PeriodicInterference
+    from skdelay.gap._lines import Line
+
+    n = 4000
+    real = hum(MG.simulate(n, random_state=541), 0.3, 0.2)
+    hint = Line(frequency=0.3, amplitude=0.1, phase=0.0, z=3.0, f_stat=20.0, p_value=3e-3,
+                bin_width=1.0 / n, half_width=3.0 / n)
+    problem = SimpleNamespace(real=real, lines=[], line_hints=[hint], sample_dt=1.0)
+    start = PeriodicInterference().initial(problem)
+    assert start["frequency"] == pytest.approx(0.3)
+    assert start["amplitude"] == pytest.approx(0.2, rel=0.15)  # read off the record
