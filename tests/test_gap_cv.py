@@ -97,3 +97,28 @@ def test_halves_drift_the_parameter_chosen_on_the_whole_record():
     other = (SimpleNamespace(simulator=MG),)
     pin_choices(other, [SimpleNamespace(effect="parameter_drift", ok=False, params={})])
     assert other[0].pinned == {} and set(drift.ranked(other[0])) == {"a", "b", "n"}
+
+
+@pytest.mark.parametrize("cv_before, null_level, shrink, tested", [
+    (0.19, 1.0, 0.9, False),  # the held-out half shows no gap: the in-sample share stands
+    (4.0, 1.0, 0.5, True),    # a gap to explain there: the held-out share (4 -> 2)
+    (4.0, 1.0, 0.9, True),    # ... never above the in-sample one (4 -> 0.2 would be 0.95)
+])
+def test_held_out_share_is_used_only_where_the_half_has_a_gap(cv_before, null_level, shrink,
+                                                               tested):
+    from types import SimpleNamespace
+
+    from skdelay.gap._diagnose import _table
+
+    eff = get_effect("measurement_noise")
+    res = SimpleNamespace(effect=eff.name, ok=True, gap_after=0.5, params={"noise": 0.01},
+                          status="ok", reason="", target=eff.target, n_evals=1, seconds=0.0,
+                          evaluation=None)
+    problem = SimpleNamespace(real=np.arange(10.0), time_unit=None, sample_dt=1.0)
+    held_out_after = 2.0 if (tested and shrink == 0.5) else 0.2
+    cv = (cv_before, {eff.name: (held_out_after, {})}, null_level)
+    table, _ = _table([res], 5.0, problem, {eff.name: eff}, cv)
+    row = table.iloc[0]
+    assert row["shrink"] == pytest.approx(shrink)
+    assert row["shrink_fit"] == pytest.approx(0.9)
+    assert bool(row["cross_validated"]) is tested
