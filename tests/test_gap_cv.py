@@ -99,13 +99,15 @@ def test_halves_drift_the_parameter_chosen_on_the_whole_record():
     assert other[0].pinned == {} and set(drift.ranked(other[0])) == {"a", "b", "n"}
 
 
-@pytest.mark.parametrize("cv_before, null_level, shrink, tested", [
-    (0.19, 1.0, 0.9, False),  # the held-out half shows no gap: the in-sample share stands
-    (4.0, 1.0, 0.5, True),    # a gap to explain there: the held-out share (4 -> 2)
-    (4.0, 1.0, 0.9, True),    # ... never above the in-sample one (4 -> 0.2 would be 0.95)
+@pytest.mark.parametrize("cv_before, cv_after, shrink, tested", [
+    (0.19, 0.28, 0.9, False),  # no gap in the held-out half, with or without the effect:
+                               # it cannot test the effect, the in-sample share stands
+    (0.19, 3.0, 1 - 3.0 / 0.19, True),  # the effect creates a gap there: refuted
+    (4.0, 2.0, 0.5, True),     # a gap to explain there: the held-out share (4 -> 2)
+    (4.0, 0.2, 0.9, True),     # ... never above the in-sample one (0.95 capped at 0.9)
 ])
-def test_held_out_share_is_used_only_where_the_half_has_a_gap(cv_before, null_level, shrink,
-                                                               tested):
+def test_held_out_share_is_used_only_where_the_half_can_test_the_effect(cv_before, cv_after,
+                                                                        shrink, tested):
     from types import SimpleNamespace
 
     from skdelay.gap._diagnose import _table
@@ -115,8 +117,7 @@ def test_held_out_share_is_used_only_where_the_half_has_a_gap(cv_before, null_le
                           status="ok", reason="", target=eff.target, n_evals=1, seconds=0.0,
                           evaluation=None)
     problem = SimpleNamespace(real=np.arange(10.0), time_unit=None, sample_dt=1.0)
-    held_out_after = 2.0 if (tested and shrink == 0.5) else 0.2
-    cv = (cv_before, {eff.name: (held_out_after, {})}, null_level)
+    cv = (cv_before, {eff.name: (cv_after, {})}, 1.0)  # the half's no-gap level: 1
     table, _ = _table([res], 5.0, problem, {eff.name: eff}, cv)
     row = table.iloc[0]
     assert row["shrink"] == pytest.approx(shrink)
