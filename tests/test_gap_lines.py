@@ -133,3 +133,52 @@ def test_hum_fit_starts_from_a_hint_when_no_line_is_found():
     start = PeriodicInterference().initial(problem)
     assert start["frequency"] == pytest.approx(0.3)
     assert start["amplitude"] == pytest.approx(0.2, rel=0.15)  # read off the record
+
+
+def test_line_feature_leaves_a_continuum_trough_unscaled():
+    """A run prefix (a multiple of LENGTH_STEP) rescales a line's excess to the record's
+    length; a trough of the continuum (ratio < 1: 13 cycles per 6000-sample Mackey-Glass
+    record, where the continuum is ~10x below its flanks) is not an excess and keeps its
+    value.  Rescaled as one, a clean run's ratio 0.06 went through zero to the floor
+    (log10 = -3), and the inflated spread hid a real hum from the line indicator."""
+    from skdelay.gap._lines import LENGTH_STEP, line_feature
+
+    n = 6000
+    freq = 13.3 / n
+    floor_hits = []
+    for seed in (561, 562, 563, 564, 565, 566):
+        z = MG.simulate(n, random_state=seed)
+        z = (z - z.mean()) / z.std()
+        prefix = (n // LENGTH_STEP) * LENGTH_STEP
+        own = line_feature(z[:prefix], freq, 1.0, prefix)  # no rescaling at n_ref = n
+        scaled = line_feature(z, freq, 1.0, n)             # prefix of 5632, rescaled to 6000
+        if own < 0:
+            assert scaled == own  # a trough stays a trough
+        floor_hits.append(scaled <= -2.99)
+        assert own < 0.5  # the clean runs have no line here
+    assert not any(floor_hits)
+    # a line's excess is rescaled: a 5 % hum at that frequency reads above the clean runs
+    z = hum(MG.simulate(n, random_state=561), freq, 0.05)
+    z = (z - z.mean()) / z.std()
+    assert line_feature(z, freq, 1.0, n) > 0.5
+
+
+def test_a_slow_hum_under_noise_survives_into_the_second_round():
+    """13 cycles per record (the paper's mains hum in a short record) at 5 % of the std
+    under 3.4 % white noise: the noise explains almost all of the gap, the hum's line must
+    still be fitted on top (the benchmark miss of seed 9.1e6, here on other seeds)."""
+    n = 6000
+    x = MG.simulate(n, random_state=571)
+    real = hum(x, 13.3 / n, 0.05) + 0.034 * x.std() * np.random.default_rng(572).standard_normal(n)
+    rep = diagnose_gap(real, MG, random_state=573, n_jobs=2,
+                       effects=["measurement_noise", "dynamical_noise", "periodic_interference",
+                                "lowpass", "parameter_drift"])
+    found = [rep.best_effect] + (list(rep.combined["effects"][1:]) if rep.combined else [])
+    assert set(found) == {"measurement_noise", "periodic_interference"}, rep.effects
+    params = rep.combined["params"][rep.combined["effects"].index("periodic_interference")]
+    assert abs(params["frequency"] - 13.3 / n) < 1.0 / n
+    # on top of the noise the amplitude is fitted through the gap, where a 13-cycle line is
+    # weakly tied to it: 0.079, 0.068, 0.052 on seeds 571/581/591 (the record's own line
+    # estimate, round 1's start, was within 5 % on all three) -- a known looseness
+    assert 0.5 * 0.05 < params["amplitude"] < 2.0 * 0.05
+    assert rep.combined["gap_after"] < rep.significance["threshold"]
