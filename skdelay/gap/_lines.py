@@ -333,6 +333,18 @@ def _amplitude(z, freq, sample_dt):
     return float(2.0 * np.abs(mu)), float((np.angle(mu) + np.pi / 2.0) % (2.0 * np.pi))
 
 
+def without_lines(x, lines, sample_dt):
+    """``x`` in standard units with the sinusoid of each line removed (amplitude and phase
+    re-estimated on ``x`` itself): the dynamics' own spectrum, for checks that must not
+    mistake a hum for one of its features."""
+    z = zscore(np.asarray(x, dtype=float))
+    t = np.arange(z.size) * sample_dt
+    for line in lines:
+        amp, phase = _amplitude(z, line.frequency, sample_dt)
+        z = z - amp * np.sin(2.0 * np.pi * line.frequency * t + phase)
+    return z
+
+
 @functools.lru_cache(maxsize=16)
 def _basis(n, frequencies, sample_dt):
     """``(cos, sin)`` matrices ``(n, m)`` at ``frequencies`` (cached: the line indicator
