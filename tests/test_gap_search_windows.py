@@ -7,6 +7,8 @@
   model's delay as its start and is searched over the whole dip window: the shift of
   an unplaceable dip is no evidence (a Mackey-Glass record taken out of the chaotic
   regime by its shorter delay has a flat curve with minima anywhere).
+* A parameter drift extends every parameter whose gap still falls at the coarse scan's
+  edge before the parameters are compared.
 """
 
 from types import SimpleNamespace
@@ -74,3 +76,27 @@ def test_a_delay_that_leaves_the_chaotic_regime_is_searched_over_the_dip_window(
     assert rep.best_effect == "delay_mismatch", rep.effects[["effect", "shrink"]]
     tau = rep.effects.set_index("effect").loc["delay_mismatch", "params"]["tau"]
     assert tau == pytest.approx(16.2, abs=1.0)  # within one sample
+
+
+def test_drift_extends_every_parameter_at_the_scan_edge_before_comparing():
+    """A parameter whose gap still falls at the coarse scan's edge is extended before the
+    parameters are compared: its edge point is not its best.  Here ``a`` falls to its
+    minimum at -30 % (gap 7 there, 34 at the -12 % edge) while ``b`` has an interior
+    minimum of 23 at -5 % (on the electro-optic oscillator with beta drifting by -29 %,
+    eps scattered to 23 and was fitted, shrink 0.18, beta never extended)."""
+    from skdelay.gap import ParameterDrift
+
+    sim = SimpleNamespace(params={"tau": 10.0, "a": 5.0, "b": 0.02})
+    problem = SimpleNamespace(simulator=sim)
+
+    def objective(p):
+        rel = p["end"] / sim.params[p["parameter"]] - 1.0
+        if p["start"] != sim.params[p["parameter"]]:
+            return 1e3  # a constant offset does not fit this record
+        if p["parameter"] == "a":
+            return 7.0 + 833.0 * (rel + 0.30) ** 2  # 34 at -12 %, 15 at -20 %
+        return 23.0 if abs(rel + 0.05) < 1e-9 else 60.0
+
+    fit = ParameterDrift().search(problem, {}, objective)
+    assert fit["parameter"] == "a"
+    assert fit["end"] / 5.0 - 1.0 == pytest.approx(-0.30, abs=0.03)
