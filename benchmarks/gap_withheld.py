@@ -263,7 +263,8 @@ def make_real(system, chain, n, seed, sample_dt):
     chain = [(name, params) for name, params in chain if name not in special]
     if "second_delay" in special:
         p = special["second_delay"]
-        x = _two_delay_mg(n, int(system.params["tau"]), int(p["tau2"]), p["c"], seed)
+        x = _two_delay_mg(n, int(system.params["tau"]), int(p["tau2"]), p["c"], seed,
+                          sample_dt=sample_dt)
     else:
         x = _make_library(system, chain, n, seed, sample_dt)
     if "tanh_detector" in special:
@@ -275,14 +276,16 @@ def make_real(system, chain, n, seed, sample_dt):
     return x
 
 
-def _two_delay_mg(n, tau1, tau2, c, seed, substeps=10):
-    """Mackey-Glass with a second feedback term c g(x(t - tau2)) (step 1, Heun)."""
+def _two_delay_mg(n, tau1, tau2, c, seed, substeps=10, sample_dt=1.0):
+    """Mackey-Glass with a second feedback term c g(x(t - tau2)) (Heun, ``substeps`` per
+    time unit), sampled every ``sample_dt`` (a multiple of ``1 / substeps``)."""
     rng = np.random.default_rng(seed)
     h = 1.0 / substeps
+    stride = max(1, round(sample_dt * substeps))
     e1, e2 = tau1 * substeps, tau2 * substeps
     dm = max(e1, e2)
     transient = 1000 + int(rng.integers(0, 2000))
-    steps = (n + transient) * substeps
+    steps = transient * substeps + n * stride
     x = np.empty(steps + dm + 1)
     x[: dm + 1] = 1.2 + 0.1 * rng.random(dm + 1)
     def g(v):  # the feedback nonlinearity
@@ -294,7 +297,7 @@ def _two_delay_mg(n, tau1, tau2, c, seed, substeps=10):
         f1 = 0.2 * g(x[i - e1 + 1]) + c * g(x[i - e2 + 1]) - (0.1 + c / 2) * xp
         x[i + 1] = x[i] + 0.5 * h * (f0 + f1)
     start = dm + transient * substeps
-    return x[start: start + n * substeps: substeps].copy()
+    return x[start: start + n * stride: stride].copy()
 
 
 def _make_library(system, chain, n, seed, sample_dt):
@@ -562,7 +565,10 @@ def _header(argv):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--systems", default="mg,laser,ikeda")
+    ap.add_argument("--systems", default="mg,laser,ikeda",
+                    help="comma-separated: mg, laser, ikeda, eo, each optionally @STEP for "
+                         "another sampling step than its usual one (e.g. mg@0.5, eo@0.5): a "
+                         "check of steps the diagnosis was not developed on")
     ap.add_argument("--outside", type=int, default=1,
                     help="cases per cause outside the library (tanh detector; MG: second delay)")
     ap.add_argument("--n", type=int, default=15000, help="samples per real series")
@@ -597,7 +603,16 @@ def main(argv=None):
                  "ikeda": ("ikeda_dt0.5", Ikeda(), 0.5),
                  # a third delay system, sampled at a step of 0.25 (80 samples per delay)
                  "eo": ("electro_optic_dt0.25", ElectroOpticOscillator(), 0.25)}
-    chosen = [available[s.strip()] for s in args.systems.split(",")]
+    chosen = []
+    for spec in args.systems.split(","):
+        key, _, step = spec.strip().partition("@")
+        if key not in available:
+            ap.error(f"--systems: unknown system {key!r}; choose from {sorted(available)}")
+        label, system, dt = available[key]
+        if step:
+            dt = float(step)
+            label = f"{label.split('_dt')[0]}_dt{step}"
+        chosen.append((label, system, dt))
     if args.calibrate:
         label, system, dt = chosen[0]
         for spec in args.calibrate:
