@@ -165,3 +165,47 @@ def test_pair_tie_test_takes_round_ones_best_alternative_to_the_first_effect(mon
     # a pair that leaves more than the threshold asks nothing
     assert pair_tie_test(None, table, by_name, chain, SimpleNamespace(gap=6.0), 5.0,
                          _Stages()) is None
+
+
+@pytest.mark.parametrize("offset, swapped", [(-2.0, True), (2.0, False), (0.0, False)])
+def test_second_tie_test_ranks_two_second_effects_on_fresh_realisations(monkeypatch, offset,
+                                                                         swapped):
+    """Round 2's tie test: the same first effect with each of the two best second effects;
+    the better pair on fresh realisations goes first, and the dict names the second effects
+    (``on``: the first)."""
+    from skdelay.gap._diagnose import _reported_tie, second_tie_test
+
+    names = ["periodic_interference", "timebase_mismatch", "measurement_noise"]
+    by_name = {n: get_effect(n) for n in names}
+    second = _table("timebase_mismatch", "measurement_noise")
+    seen = []
+
+    def fake_pair(problem, seed, chains):
+        seen.append([[e.name for e, _ in c] for c in chains])
+        return [1.0 + 0.01 * seed, 1.0 + offset + 0.01 * seed + 0.1 * (-1) ** seed]
+
+    monkeypatch.setattr(_diagnose, "_evaluate_pair", fake_pair)
+    chain = [(by_name["periodic_interference"], {})]
+    tie = second_tie_test(None, second, [None, None], by_name, chain, 5.0, _Stages())
+    assert seen[0] == [["periodic_interference", "timebase_mismatch"],
+                       ["periodic_interference", "measurement_noise"]]
+    assert tie["on"] == "periodic_interference"
+    assert tie["swapped"] is swapped and tie["decided"] is (offset != 0.0)
+    assert tie["effects"] == (["measurement_noise", "timebase_mismatch"] if swapped
+                              else ["timebase_mismatch", "measurement_noise"])
+    combined = {"effects": ["periodic_interference", tie["effects"][0]]}
+    assert _reported_tie(tie, "periodic_interference", combined) is tie
+    assert _reported_tie(tie, "measurement_noise", combined) is None
+    from types import SimpleNamespace
+
+    from skdelay.gap._report import GapReport
+
+    words = GapReport._tie_words(SimpleNamespace(tie=tie))
+    a, b = (f"periodic_interference + {e}" for e in tie["effects"])
+    assert (f"The effects {a} are preferred to {b}" in words if tie["decided"]
+            else f"this record cannot tell {a} from {b}" in words), words
+    # a runner-up pair that leaves more than the threshold, or a contradicted one: not asked
+    assert second_tie_test(None, second, [None, None], by_name, chain, 1.2, _Stages()) is None
+    contradicted = second.assign(consistent=[True, False])
+    assert second_tie_test(None, contradicted, [None, None], by_name, chain, 5.0,
+                           _Stages()) is None

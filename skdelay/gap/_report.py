@@ -225,17 +225,20 @@ class GapReport:
         (a, b), (ga, gb) = t["effects"], t["gaps"]
         if t.get("with"):  # two pairs: each with the same second effect
             a, b = f"{a} + {t['with']}", f"{b} + {t['with']}"
+        if t.get("on"):  # two pairs: the same first effect, two second effects
+            a, b = f"{t['on']} + {a}", f"{t['on']} + {b}"
+        pair = bool(t.get("with") or t.get("on"))
         n = t["n_realisations"]
-        kind = "effects" if t.get("with") else "effect"
+        kind = "effects" if pair else "effect"
         gaps = (f"over {n} noise realisations {a} leaves a gap of {np.mean(ga):.3g} on "
                 f"average and {b} {np.mean(gb):.3g} (difference {t['difference']:.3g} +- "
                 f"{t['se']:.2g}")
         if t["decided"]:
             return (f"The {kind} {a} are preferred to {b}, which also explain"
-                    if t.get("with") else
+                    if pair else
                     f"The effect {a} is preferred to {b}, which also explains") + (
                 f" the record in-sample: {gaps}, t = {t['t']:.2g} above {t['critical']:.2g}).")
-        return (f"The {kind} {b} {'do' if t.get('with') else 'does'} as well: {gaps}, "
+        return (f"The {kind} {b} {'do' if pair else 'does'} as well: {gaps}, "
                 f"t = {t['t']:.2g} within {t['critical']:.2g}), so this record cannot tell "
                 f"{a} from {b}; a longer record may.")
 
