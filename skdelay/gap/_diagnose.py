@@ -14,6 +14,7 @@ from ._effects import CandidateFailed, EffectFailed, call_hook, is_builtin, reso
 from ._fit import fit_effect
 from ._lines import F_ALPHA, without_lines
 from ._problem import GapProblem
+from ._range import range_test
 from ._report import GapReport
 from ._signature import mean_std
 from ._units import parse_sample_dt
@@ -111,8 +112,10 @@ def significance(problem):
     simulator runs lack (:func:`skdelay.gap._lines.find_lines`), or when the
     record's forecast-error dip sits elsewhere than the runs' dip
     (:func:`skdelay.gap._where.dip_shift_significant`: at least ``DIP_MIN_SHIFT``
-    samples and ``DIP_Z`` combined standard errors apart).  The thresholds were
-    calibrated on no-effect controls (benchmarks/gap_withheld.py).
+    samples and ``DIP_Z`` combined standard errors apart), or when it leaves the runs'
+    range more often than they leave each other's (:func:`skdelay.gap._range.range_test`:
+    isolated spikes).  The thresholds were calibrated on no-effect controls
+    (benchmarks/gap_withheld.py, benchmarks/dip_false_alarms.py).
 
     The dip is a test of its own because a delay mismatch of one or two
     samples moves it far outside the runs' scatter while changing every
@@ -128,10 +131,14 @@ def significance(problem):
     # a spectral line passed its own ensemble-calibrated test (skdelay.gap._lines)
     lines = len(problem.lines)
     dip_shift = dip_shift_significant(problem)
+    # spikes beyond the runs' range, too few to move a histogram bin (skdelay.gap._range)
+    beyond = range_test(problem.real, problem.base)
     return {"gap_before": gap, "null_median": level, "null_max": float(np.max(null)),
             "threshold": threshold, "max_z": max_z, "z_local": Z_LOCAL, "lines": lines,
-            "dip_shift": dip_shift,
-            "significant": bool(gap > threshold or max_z > Z_LOCAL or lines or dip_shift)}
+            "dip_shift": dip_shift, "beyond_range": beyond["count"],
+            "beyond_range_p": beyond["p_value"],
+            "significant": bool(gap > threshold or max_z > Z_LOCAL or lines or dip_shift
+                                or beyond["off"])}
 
 
 def _peak_frequency(x, sample_dt, nperseg=4096):

@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 
 from ._effects import EFFECTS, fmt_value
+from ._range import RANGE_ALPHA
 from ._signature import mean_std
 from ._units import format_frequency, frequency_unit, time_unit_name
 
@@ -212,6 +213,9 @@ class GapReport:
             what = f"one bin lies {s['max_z']:.3g} spreads off"
         elif s.get("dip_shift"):
             what = "the forecast-error dip lies outside the runs' scatter"
+        elif s.get("beyond_range_p", 1.0) < RANGE_ALPHA:
+            what = (f"the record leaves the simulator runs' range {s['beyond_range']} times "
+                    f"(isolated spikes; chance {s['beyond_range_p']:.1g} at the runs' own rate)")
         else:
             return ""
         return (f", significant although the gap {self.gap_before:.3g} is within the no-gap "
