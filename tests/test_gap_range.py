@@ -54,3 +54,41 @@ def test_spikes_under_the_gap_threshold_are_found_as_outliers():
     assert s["beyond_range_p"] < RANGE_ALPHA and s["significant"]
     assert "leaves the simulator runs' range" in rep.headline()
     assert rep.best_effect == "outliers", rep.effects[["effect", "shrink"]]
+
+
+@pytest.mark.parametrize("j", [1, 2])
+def test_a_finely_sampled_clean_record_is_not_a_gap(j):
+    """Mackey-Glass at step 0.5 (34 samples per delay), no effect: one badly failed local
+    forecast among the 400 of a delay lifted the record's forecast-error curve by 0.3-0.5
+    (log10) where ten runs agreed within 0.03, and these two records (the false-alarm
+    benchmark's, seeds 7.9e6 + 101 j) were significant (z 9.6 and 9.7).  The record's own
+    standard error now enters its z-scores."""
+    mg = MackeyGlass()
+    seed = 7_900_000 + 101 * j
+    real = mg.simulate(6000, sample_dt=0.5, random_state=seed)
+    rep = diagnose_gap(real, mg, sample_dt=0.5, random_state=seed % 9973, n_jobs=2,
+                       effects=["outliers"], combine=False, cross_validated=False)
+    assert not rep.significance["significant"], rep.significance
+    assert rep.best_effect is None
+
+
+def test_the_forecast_error_z_carries_the_records_own_standard_error():
+    from skdelay.gap._indicators import fe_curve, zscores
+    from skdelay.gap._problem import GapProblem
+    from skdelay.gap._signature import zscore
+
+    mg = MackeyGlass()
+    real = mg.simulate(4000, sample_dt=0.5, random_state=931)
+    p = GapProblem(real, mg, sample_dt=0.5, random_state=932, n_jobs=1, n_sims=4)
+    ind = p.indicators["forecast_error"]
+    sigma, se = fe_curve(zscore(real), ind.taus, refine=False, with_se=True)
+    own = p.real_var["forecast_error"]
+    assert np.all(own > 0)
+    np.testing.assert_allclose(own, (se / (sigma * np.log(10))) ** 2)
+    f = p.base_features["forecast_error"][0]
+    from skdelay.gap._problem import _spread
+
+    mean, var = _spread(f, p.base_var["forecast_error"])
+    np.testing.assert_allclose(p.before.z["forecast_error"],
+                               zscores(p.real_features["forecast_error"], mean, var, 4, own))
+    assert set(p.real_var) == {"forecast_error"}  # the other indicators have no own estimate

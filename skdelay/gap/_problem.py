@@ -143,9 +143,14 @@ class GapProblem:
         self.indicators = make_indicators(real, runs, self.sample_dt, self.delay_samples,
                                           self.lines)
         self.real_z = zscore(real)
-        self.real_features = {k: ind.profile(self.real_z, database=zscore(runs[0]))[0]
-                              if ind.paired else ind.profile(self.real_z)[0]
-                              for k, ind in self.indicators.items()}
+        self.real_features, self.real_var = {}, {}
+        for k, ind in self.indicators.items():
+            if ind.paired:
+                self.real_features[k] = ind.profile(self.real_z, database=zscore(runs[0]))[0]
+            elif hasattr(ind, "profile_with_var"):  # the record's own estimation variance
+                self.real_features[k], self.real_var[k] = ind.profile_with_var(self.real_z)
+            else:
+                self.real_features[k] = ind.profile(self.real_z)[0]
         self.base_features = profiles(self.indicators, runs, blocks=True)
         self.base_var = {k: ensemble_stats(f, self.indicators[k], b)[1]
                          for k, (f, b) in self.base_features.items()}
@@ -255,7 +260,7 @@ class GapProblem:
             if self.indicators[k].paired and runs is not None and runs is not self.base:
                 real = self.indicators[k].profile(self.real_z, database=zscore(runs[0]))[0]
             mean, var = _spread(f, self.base_var[k])
-            z = zscores(real, mean, var, f.shape[0])
+            z = zscores(real, mean, var, f.shape[0], self.real_var.get(k, 0.0))
             gaps[k], zs[k], means[k], stds[k] = indicator_gap(z), z, mean, np.sqrt(var)
         return Evaluation(float(sum(gaps.values())), gaps, zs, means, stds, runs)
 
