@@ -116,3 +116,24 @@ def test_timebase_consistency_checks():
     dm = get_effect("delay_mismatch")
     (_, ok, _), = consistency(problem, [(dm, {"tau": 17.0})])
     assert ok == (abs(problem.dip_real - problem.dip_sim) <= 1.0)
+
+
+def test_a_second_dip_must_lie_below_the_runs_by_its_standard_errors():
+    """A local minimum 15 % below the runs' curve is a second dip only when that is at
+    least DIP_Z combined standard errors: one failed forecast among a few hundred lifts a
+    finely sampled curve by more (Mackey-Glass at step 0.5 gave four spurious ones)."""
+    from types import SimpleNamespace
+
+    from skdelay.gap._indicators import other_dips
+    from skdelay.gap._where import DIP_Z
+
+    taus = np.arange(1.0, 41.0)
+    ref = np.full(taus.size, 1.0)
+    curve = ref.copy()
+    curve[25:32] = [0.97, 0.92, 0.88, 0.85, 0.88, 0.92, 0.97]  # a dip at tau 29
+    main = SimpleNamespace(centre=10.0, half_width=1.0)
+    assert [d.tau_min for d in other_dips(taus, curve, main, reference=ref)] == [29]
+    tight = np.full(taus.size, 0.02)  # 0.15 below = 7.5 standard errors
+    assert len(other_dips(taus, curve, main, reference=ref, se=tight, min_z=DIP_Z)) == 1
+    loose = np.full(taus.size, 0.08)  # 0.15 below = 1.9 standard errors
+    assert other_dips(taus, curve, main, reference=ref, se=loose, min_z=DIP_Z) == []

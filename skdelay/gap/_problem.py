@@ -19,7 +19,7 @@ from ._effects import CandidateFailed, EffectFailed, SimulationFailed, call_hook
 from ._indicators import ensemble_stats, indicator_gap, make_indicators, profiles, zscores
 from ._lines import line_scan, spectrum_view
 from ._signature import zscore
-from ._where import dip_window
+from ._where import DIP_Z, dip_window
 
 __all__ = ["Evaluation", "GapProblem", "SimulationFailed", "run_simulator"]
 
@@ -180,8 +180,9 @@ class GapProblem:
             return
         from ._indicators import fe_curve
 
-        taus, real_curve = fe_scan(self.real, self.delay_samples)
-        sim_curves = [fe_curve(x, taus) for x in self.base[: self.DIP_RUNS]]
+        taus, real_curve, real_se = fe_scan(self.real, self.delay_samples, with_se=True)
+        sims = [fe_curve(x, taus, with_se=True) for x in self.base[: self.DIP_RUNS]]
+        sim_curves = [c for c, _ in sims]
         # the delay's dip is sought near the model's delay (see _where.dip_window)
         d0 = self.delay_samples
         near = np.abs(taus - d0) <= dip_window(d0)
@@ -196,7 +197,13 @@ class GapProblem:
         self.dip_spread = float(np.hypot(se, scatter))
         mean_sim = np.mean(sim_curves, axis=0)
         self.dip_curves = (taus, real_curve, mean_sim)
-        self.second_dips = other_dips(taus, real_curve, self.dip, reference=mean_sim)
+        # the standard error of real - mean of the runs: the record's own, the runs' own and
+        # their scatter (the runs' curves differ by more than their queries say)
+        runs_var = (np.mean([s**2 for _, s in sims], axis=0)
+                    + (np.var(sim_curves, axis=0, ddof=1) if len(sims) > 1 else 0.0))
+        self.dip_curve_se = np.sqrt(real_se**2 + runs_var / max(len(sims), 1))
+        self.second_dips = other_dips(taus, real_curve, self.dip, reference=mean_sim,
+                                      se=self.dip_curve_se, min_z=DIP_Z)
 
     # ----------------------------------------------------------------- runs
     def _effect_seed(self, j, name):
@@ -304,7 +311,8 @@ class GapProblem:
         for dip in self.second_dips:
             k = int(np.argmin(np.abs(taus - dip.tau_min)))
             ref = np.mean([fe_curve(x, [taus[k]])[0] for x in runs])
-            if 1.0 - real_curve[k] / ref >= SECOND_DIP_DEPTH:
+            if (1.0 - real_curve[k] / ref >= SECOND_DIP_DEPTH
+                    and ref - real_curve[k] >= DIP_Z * self.dip_curve_se[k]):
                 out.append(dip)
         return out
 
