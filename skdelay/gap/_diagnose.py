@@ -232,10 +232,10 @@ def consistency(problem, chain):
                            max(TB_TOL, _scatter_tol(c_runs))))
             f_runs = np.array([_peak_frequency(x[:n], dt)[0] for x in problem.base])
             f_sim = float(f_runs.mean())
-            df = _peak_frequency(problem.real, dt)[1]
+            peaks = [_peak_frequency(x, dt) for x in readings]
+            df = peaks[0][1]
             checks.append(("main spectral peak",
-                           _closest([_peak_frequency(x, dt)[0] / f_sim for x in readings],
-                                    factor),
+                           _closest([f / f_sim for f, _ in peaks], factor),
                            max(TB_TOL, 0.5 * df / max(f_sim, 1e-300), _scatter_tol(f_runs))))
             bad = [(name, r, tol) for name, r, tol in checks if abs(r - factor) > tol]
             text = "; ".join(f"{name} moved by x{r:.3f}" for name, r, _ in checks)
