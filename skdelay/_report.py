@@ -208,6 +208,18 @@ def faithful_sentence(result):
     """The faithful-model verdict in one sentence, following the table."""
     clause = _noise_clause(result)
     if result.minimal_m is not None:
+        table = getattr(result, "validation", None)
+        marginal = []
+        if table is not None and "marginal" in table:
+            above = table.loc[table.index > result.minimal_m]
+            marginal = [int(m) for m in above.index[above["marginal"].astype(bool)
+                                                    & ~above["faithful"].astype(bool)]]
+        if marginal:
+            ms = ", ".join(map(str, marginal))
+            return (f"Minimal faithful window length m_d = {result.minimal_m}: every model from "
+                    f"m = {result.minimal_m} on reproduces the data{clause}, except that the "
+                    f"runs of m = {ms} sit at a band's edge (marginal: their median's 95 % "
+                    f"interval holds the band).")
         return (f"Minimal faithful window length m_d = {result.minimal_m}: every model from "
                 f"m = {result.minimal_m} on reproduces the data{clause}.")
     return f"No model up to m = {max(result.runs or [result.m])} is faithful{clause}: " \

@@ -30,8 +30,11 @@ def test_result_holds_everything_it_computed(result):
         assert {c, f"{c}_band", f"{c}_pass"} <= set(tab.columns)
     assert (tab["tau"] == 17).all()
     assert set(result.models) == set(result.runs) == set(result.spectra) == {1, 2, 3, 4}
-    # every run of the faithful models (the others stop at their first failed run)
-    assert all(len(result.runs[m]) == 3 and result.runs[m][0].size == 8000 for m in (2, 3, 4))
+    # every run of the faithful models (the others stop at their first failed run): one
+    # batch of three, more batches only while the runs disagree
+    for m in (2, 3, 4):
+        assert len(result.runs[m]) == tab.loc[m, "n_runs"] in (3, 6, 9)
+        assert all(run.size == 8000 for run in result.runs[m])
     # the spectra in the table are the returned ones, not recomputed
     assert tab.loc[3, "lambda_1"] == result.spectra[3].exponents[0]
     # m_max is compared with m_max - 1 (against itself it would pass by construction)
@@ -52,9 +55,9 @@ def test_scalar_window_is_not_faithful_but_larger_windows_are(result):
     assert tab.loc[1, "lyapunov"] > 0.5
     # from m_d on every model is faithful: distances within the data-vs-data bands
     assert m_d in (2, 3)
-    for m in range(m_d, 5):
-        assert tab.loc[m, "faithful"], tab.loc[m, "status"]
-        assert tab.loc[m, "histogram"] <= tab.loc[m, "histogram_band"]
+    assert tab.loc[m_d, "faithful"]
+    for m in range(m_d, 5):  # faithful, or at a band's edge that its runs cannot decide
+        assert tab.loc[m, "faithful"] or tab.loc[m, "marginal"], tab.loc[m, "status"]
     for m in (2, 3, 4):  # lambda_1 ~ 0.0052 per step, D_KY ~ 2.1
         assert 0.0035 < tab.loc[m, "lambda_1"] < 0.0065
         assert 1.9 < tab.loc[m, "d_ky"] < 2.3
