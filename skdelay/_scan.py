@@ -719,12 +719,15 @@ def list_index(s, m, members):
     return tree, sdata, sids, is_member
 
 
-def list_slice(s, m, index, needed, k, theiler, n_threads=1):
+def list_slice(s, m, index, needed, k, theiler, n_threads=1, out=None):
     """``(lists, rk2)`` of the times ``needed`` (a slice of them) on the tree ``index``.
 
     ``k`` neighbours per time (at most the number of members); see
     :func:`candidate_lists`.  Runs on ``n_threads`` numba threads: one inside a
-    joblib task, where the tasks themselves are the parallelism.
+    joblib task, where the tasks themselves are the parallelism.  ``out``: the
+    rows of this slice in arrays of the whole list (``(needed.size, k)`` int32
+    and ``needed.size`` float64, C-contiguous), filled in place and returned;
+    thread workers then build one list without a concatenation afterwards.
     """
     tree, sdata, sids, is_member = (tuple(np.asarray(a) for a in index[0]),
                                     *(np.asarray(a) for a in index[1:]))
@@ -733,8 +736,11 @@ def list_slice(s, m, index, needed, k, theiler, n_threads=1):
         grown = np.zeros(int(needed.max()) + 2, dtype=np.bool_)
         grown[: is_member.size] = is_member
         is_member = grown
-    lists = np.full((needed.size, k), -1, dtype=np.int32)
-    rk2 = np.full(needed.size, np.inf)
+    if out is None:
+        lists = np.full((needed.size, k), -1, dtype=np.int32)
+        rk2 = np.full(needed.size, np.inf)
+    else:  # every row is written by the search below
+        lists, rk2 = out
     if needed.size == 0:
         return lists, rk2
     s64 = np.ascontiguousarray(s, dtype=np.float64)
@@ -881,6 +887,24 @@ def _segment_length(s, m, tau, db_t, k, theiler, d_ref, rng, n_min):
 
 
 # ----------------------------------------------------------------------------- driver
+class _MappedArray(np.memmap):
+    """A whole read-only memory map that pickles as its file's path.
+
+    joblib's loky workers receive memory maps by path on their own, but Dask
+    (and plain pickle) would copy the data into every task that holds it in a
+    tuple: the paper-scale scan on a 2-worker LocalCluster spent 295 s CPU
+    against 175 s in threads (benchmarks/out/scan_scaling.txt).  Views of it
+    (slices) are not whole and pickle their data as usual.
+    """
+
+    _whole = False
+
+    def __reduce_ex__(self, protocol):
+        if self._whole and self.filename is not None:
+            return np.load, (self.filename, "r")
+        return np.asarray(self).__reduce_ex__(protocol)
+
+
 class _Shared:
     """Arrays handed to process workers as memory maps written once (see SHARE_BYTES)."""
 
@@ -897,7 +921,9 @@ class _Shared:
         self.count += 1
         path = os.path.join(self.folder, f"a{self.count}.npy")
         np.save(path, arr)
-        return np.load(path, mmap_mode="r")
+        mapped = np.load(path, mmap_mode="r").view(_MappedArray)
+        mapped._whole = True
+        return mapped
 
     def release(self, arrays):
         """Delete the files of memory-mapped arrays whose tasks are done."""
@@ -1060,11 +1086,17 @@ def scan_series(s, ms, taus, splits, options, *, random_state=None, n_jobs=None,
         plan = _candidate_plan(s, m, db_m, q_t, np.unique(starts), opt)
         index = (tuple(plan.index[0]), *(shared(a) for a in plan.index[1:]))
         cuts = _list_cuts(plan.needed.size, max(LIST_SLICES, TASKS_PER_WORKER * n_workers))
-        list_tasks = [delayed(list_slice)(s, m, index, plan.needed[lo:hi], plan.k, w)
+        # workers in this process fill one list in place: no serial concatenation of the
+        # slices (~0.6 s per m at 10^6 rows) between the list build and the scan
+        whole = (np.empty((plan.needed.size, plan.k), dtype=np.int32),
+                 np.empty(plan.needed.size)) if in_process else None
+        list_tasks = [delayed(list_slice)(s, m, index, plan.needed[lo:hi], plan.k, w, 1,
+                                          None if whole is None else
+                                          (whole[0][lo:hi], whole[1][lo:hi]))
                       for lo, hi in pairwise(cuts)]
 
         def make(parts):
-            lists, rk2 = _padded(parts, plan.n_list)
+            lists, rk2 = _padded([whole] if whole is not None else parts, plan.n_list)
             arrays = (shared(lists), shared(rk2), plan.row_of, plan.u_min, shared(plan.is_db))
             shared.release(index[1:])
             tasks = [delayed(_candidates_task)(
@@ -1101,10 +1133,10 @@ def scan_series(s, ms, taus, splits, options, *, random_state=None, n_jobs=None,
 
         One joblib call per cell carries the candidate-list tasks of that cell
         and then the scan tasks of the previous one.  The main process
-        assembles the lists as soon as they are in and prepares the next cell
-        (its k-d tree) while the workers scan, so no thread competes with the
-        workers and the list build is as parallel as the scan under any
-        backend.  (Scan tasks first, lists last, measured 176 s against 168 s
+        prepares the next cell (its k-d tree) as soon as the call is
+        dispatched and assembles the lists as soon as they are in (thread
+        workers fill them in place), so the list build is as parallel as the
+        scan under any backend and only the first cell's tree is serial.  (Scan tasks first, lists last, measured 176 s against 168 s
         on the paper-scale scan with 2 workers: the assembly then waits for
         the whole call.)
         """
@@ -1123,6 +1155,9 @@ def scan_series(s, ms, taus, splits, options, *, random_state=None, n_jobs=None,
                     ([f"scan m={pending[0].cell[1]}"] if scan else [])
                 bar.set_postfix_str(", ".join(what))
             results = iter(parallel(lists + scan)) if lists or scan else iter(())
+            # the call is dispatched: prepare the next cell (its k-d tree) while the workers
+            # build these lists, so no call waits on the main thread but the very first
+            following = prepare(cells[n + 1]) if n + 1 < len(cells) else None
             ready = None
             if nxt is not None:
                 parts = []
@@ -1131,7 +1166,6 @@ def scan_series(s, ms, taus, splits, options, *, random_state=None, n_jobs=None,
                     if bar is not None:
                         bar.update(1)
                 ready = (nxt, *nxt.make(parts))
-            following = prepare(cells[n + 1]) if n + 1 < len(cells) else None
             if pending is not None:
                 collect(pending[0], pending[1], pending[2], results)
             for _ in results:  # run the generator to its end: the call is then complete
@@ -1145,7 +1179,8 @@ def scan_series(s, ms, taus, splits, options, *, random_state=None, n_jobs=None,
         # configures (loky, Dask) still wins, and then large arrays go out as memory maps
         with Parallel(n_jobs=n_jobs, verbose=verbose, return_as="generator",
                       prefer="threads") as parallel:
-            shared.enabled = n_workers > 1 and not _uses_threads(parallel)
+            in_process = n_workers == 1 or _uses_threads(parallel)
+            shared.enabled = not in_process
             coarse_cells = []
             for split, (_, _, per_m) in enumerate(plans):
                 for m in ms[::-1]:  # costliest (largest m) first: better load balance
@@ -1237,7 +1272,14 @@ def _candidate_plan(s, m, db_t, q_t, starts, opt):
     k-d tree of the member windows; the lists themselves are built by :func:`list_slice`."""
     reach_back = int(starts.max())
     members = np.arange(max(m - 1, int(db_t.min()) - reach_back), int(db_t.max()) + 1)
-    needed = np.unique(np.concatenate([q_t, (q_t[:, None] - starts[None, :]).ravel()]))
+    # the times as a mask over their range (np.unique of the 5 * 10^6 query-start
+    # differences of the paper-scale scan took 0.5 s per m, all of it serial)
+    lo = int(q_t.min()) - int(starts.max())
+    wanted = np.zeros(int(q_t.max()) - lo + 1, dtype=np.bool_)
+    wanted[q_t - lo] = True
+    for start in starts:
+        wanted[q_t - int(start) - lo] = True
+    needed = np.flatnonzero(wanted) + lo
     u_min = int(needed[0])
     row_of = np.full(int(needed[-1]) - u_min + 1, -1, dtype=np.int64)
     row_of[needed - u_min] = np.arange(needed.size)

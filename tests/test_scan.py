@@ -223,6 +223,26 @@ def test_progress_bar_and_shared_arrays(mg30, capsys, monkeypatch):
                                rtol=1e-12)
 
 
+def test_a_shared_memory_map_pickles_as_its_path_and_a_slice_as_its_data():
+    import pickle
+
+    import skdelay._scan as scan
+
+    shared = scan._Shared(True)
+    try:
+        a = np.random.default_rng(0).normal(size=scan.SHARE_BYTES // 8 + 100)
+        mapped = shared(a)
+        blob = pickle.dumps(mapped, protocol=5)
+        assert len(blob) < 1000  # the path, not the 16 MB of data (Dask would copy them)
+        np.testing.assert_array_equal(pickle.loads(blob), a)
+        part = pickle.loads(pickle.dumps(mapped[10:20]))
+        np.testing.assert_array_equal(part, a[10:20])
+        assert not isinstance(part, np.memmap)
+        assert shared(a[:10]) is not None and type(shared(a[:10])) is np.ndarray  # small: as is
+    finally:
+        shared.close()
+
+
 # ----------------------------------------------------------------------------- searches
 @pytest.mark.parametrize("every_point", [False, True])
 def test_tree_search_is_the_exact_knn(every_point):

@@ -169,7 +169,7 @@ def test_equal_neighbourhood(mg30):
     assert np.all(np.abs(locate_dips(rad)["delay"] - 30) < 1.5)
 
 
-def test_n_jobs_and_dask_give_the_same_table(mg30):
+def test_n_jobs_and_dask_give_the_same_table(mg30, monkeypatch):
     kw = {"m": (2, 3), "tau": range(27, 34), "n_queries": 300, "random_state": 0}
     ref = forecast_error_curve(mg30[:4000], **kw)
     # threads by default; processes (memory-mapped lists) when the user asks for loky
@@ -180,6 +180,9 @@ def test_n_jobs_and_dask_give_the_same_table(mg30):
     pytest.importorskip("dask")
     client = distributed.Client(processes=False, n_workers=1, threads_per_worker=2,
                                 dashboard_address=None)
+    import skdelay._scan as scan
+
+    monkeypatch.setattr(scan, "SHARE_BYTES", 0)  # every array goes out as a memory map
     with client, parallel_config(backend="dask"):
         dask_table = forecast_error_curve(mg30[:4000], n_jobs=2, **kw)
     pd.testing.assert_frame_equal(dask_table, ref)
