@@ -105,6 +105,9 @@ def test_halves_drift_the_parameter_chosen_on_the_whole_record():
     (0.19, 3.0, 1 - 3.0 / 0.19, True),  # the effect creates a gap there: refuted
     (4.0, 2.0, 0.5, True),     # a gap to explain there: the held-out share (4 -> 2)
     (4.0, 0.2, 0.9, True),     # ... never above the in-sample one (0.95 capped at 0.9)
+    (4.0, 0.8, 0.9, True),     # left within the half's no-gap level: confirmed, and the
+                               # null scatter (0.8) does not count against it (not 0.8)
+    (4.0, 1.2, 0.7, True),     # left beyond it: the held-out share
 ])
 def test_held_out_share_is_used_only_where_the_half_can_test_the_effect(cv_before, cv_after,
                                                                         shrink, tested):
