@@ -40,9 +40,16 @@ class GapReport:
         ``shrink_fit`` (in-sample, whole record), ``cv_gap_before`` /
         ``cv_gap_after`` (held-out half).  With cross-validation (records of at
         least 4000 samples) ``shrink`` is the held-out half's
-        ``1 - cv_gap_after / cv_gap_before`` and ``gap_after = gap_before * (1 -
-        shrink)``; ``params`` are fitted on the whole record,, ``description`` (fitted parameters in
-        physical units), ``n_evals``, ``seconds``.
+        ``1 - cv_gap_after / cv_gap_before``, never above the in-sample share,
+        and ``gap_after = gap_before * (1 - shrink)``; the in-sample share
+        stands where the held-out half cannot test the effect (its gap within
+        the no-gap level of its clean runs with and without the effect) or is
+        left within that level by it (``cross_validated`` is False only in
+        the first case);
+        ``params`` are fitted on the whole record.  Also ``description``
+        (fitted parameters in physical units), ``consistent`` (do the
+        parameters agree with independent evidence; None: no check),
+        ``n_evals``, ``seconds``.
     where : pandas.DataFrame
         Localised discrepancies, largest first: ``indicator``, ``feature``,
         ``low``, ``high`` (frequency in cycles per time unit, values in units
