@@ -55,3 +55,37 @@ def test_hum_starts_from_the_line_that_explains_most_of_the_gap():
     hum = rep.effects.set_index("effect").loc["periodic_interference", "params"]
     assert hum["frequency"] == pytest.approx(0.0143, abs=0.5 / n)  # within half a bin
     assert hum["amplitude"] == pytest.approx(0.38, rel=0.2)
+
+
+def test_a_runner_up_is_paired_with_effects_the_best_round_two_ranked_low(monkeypatch):
+    """What the best effect absorbed can sit low in its round 2: Ikeda (step 0.5, noise 0.60
+    + a 0.37-std hum, benchmark seed 10 326 000) led with a timebase factor; on top of it
+    the noise came fifth.  The runner-up hum must still be tried with the noise."""
+    from types import SimpleNamespace
+
+    import pandas as pd
+    from joblib import Parallel
+
+    from skdelay.gap import _diagnose
+
+    table = pd.DataFrame({"effect": ["timebase_mismatch", "periodic_interference",
+                                     "measurement_noise"],
+                          "shrink": [0.55, 0.52, 0.25], "status": ["ok"] * 3,
+                          "params": [{}] * 3, "consistent": [True, None, None]})
+    second = pd.DataFrame({"effect": ["periodic_interference", "outliers", "delay_mismatch",
+                                      "measurement_noise"], "status": ["ok"] * 4})
+    by_name = {name: SimpleNamespace(name=name) for name in
+               ["timebase_mismatch", "periodic_interference", "measurement_noise",
+                "outliers", "delay_mismatch"]}
+    best_pair = SimpleNamespace(gap=4.7)
+
+    def fake_fit(effect, problem, chain, *args):
+        first = chain[0][0].name
+        good = {first, effect.name} == {"periodic_interference", "measurement_noise"}
+        return SimpleNamespace(ok=True, gap_after=0.5 if good else 4.0)
+
+    monkeypatch.setattr(_diagnose, "off_indicators", lambda problem, ev: {"band_spectrum": 1})
+    monkeypatch.setattr(_diagnose, "fit_effect", fake_fit)
+    pick = _diagnose._better_first(None, table, [object()] * 3, by_name, second,
+                                   [best_pair], Parallel(n_jobs=1))
+    assert pick == 1  # the hum, whose pair with the noise leaves 0.5 against 4.7
