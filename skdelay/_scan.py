@@ -1136,9 +1136,10 @@ def scan_series(s, ms, taus, splits, options, *, random_state=None, n_jobs=None,
         prepares the next cell (its k-d tree) as soon as the call is
         dispatched and assembles the lists as soon as they are in (thread
         workers fill them in place), so the list build is as parallel as the
-        scan under any backend and only the first cell's tree is serial.  (Scan tasks first, lists last, measured 176 s against 168 s
-        on the paper-scale scan with 2 workers: the assembly then waits for
-        the whole call.)
+        scan under any backend and only the first cell's tree is serial.
+        (Scan tasks first, lists last, measured 176 s against 168 s on the
+        paper-scale scan with 2 workers: the assembly then waits for the whole
+        call.)
         """
         if bar is not None:  # every scan task is known now (list tasks: once planned)
             bar.total += sum(n_chunks_of(c[2]) for c in cells)

@@ -577,18 +577,11 @@ PAIR_SLACK = 0.1
 #: electro-optic oscillator (step 0.25, the benchmark's noise + hum record) the hum paired
 #: with either noise type left 0.35-0.53 with nothing off: no pair decides, none is swapped.
 PAIR_RATIO = 0.5
-#: the runners-up are paired with every other effect (a second round of their own), not only
-#: with the best second effects of the best's round 2: the second cause need not head that
-#: round (Mackey-Glass, 4000 samples, noise 0.035 + a 0.35-std hum at 0.0143: on top of
-#: dynamical noise the hum removed 17 % of the residual, a little measurement noise 24 %),
-#: and what the best absorbed may be missing from it altogether (Ikeda, step 0.5, 6000
-#: samples, noise 0.60 + a 0.37-std hum, benchmark seed 10 326 000: on top of a timebase
-#: factor 1.29 the noise came fifth, so the runner-up hum was paired with outliers only)
 
 
 def _better_first(problem, table, evaluations, by_name, second, second_evals, parallel):
-    """Row of round 1's table that pairs clearly better with one of the best second
-    effects than the best does (see :data:`PAIR_SLACK`, :data:`PAIR_RATIO`), or None."""
+    """Row of round 1's table that pairs clearly better with some other effect than the
+    best does with its second (see :data:`PAIR_SLACK`, :data:`PAIR_RATIO`), or None."""
     pair = second_evals[0]
     if pair is None or not off_indicators(problem, pair):
         return None  # the pair explains the record: nothing to reconsider
@@ -605,6 +598,13 @@ def _better_first(problem, table, evaluations, by_name, second, second_evals, pa
             if table.iloc[i]["status"] == "ok" and evaluations[i] is not None
             and not _contradicted(table.iloc[i])
             and table.iloc[i]["shrink"] >= max(MIN_SHRINK, top_shrink - slack)]
+    # each runner-up is paired with every other effect (a second round of its own), not only
+    # with the best second effects of the best's round 2: the second cause need not head that
+    # round (Mackey-Glass, 4000 samples, noise 0.035 + a 0.35-std hum at 0.0143: on top of
+    # dynamical noise the hum removed 17 % of the residual, a little measurement noise 24 %),
+    # and what the best absorbed may sit low in it (Ikeda, step 0.5, 6000 samples, noise 0.60
+    # + a 0.37-std hum, benchmark seed 10 326 000: on top of a timebase factor 1.29 the noise
+    # came fifth, so the runner-up hum was paired with outliers only and missed the noise)
     seconds = [name for name in second["effect"] if name in by_name]
     jobs = [(i, name) for i in rows for name in seconds if name != table.iloc[i]["effect"]]
     if not jobs:
