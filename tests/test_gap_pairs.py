@@ -35,6 +35,23 @@ def test_measurement_noise_under_a_strong_hum_is_not_dynamical_noise(seed):
     assert rep.combined["params"][0]["noise"] == pytest.approx(0.035, rel=0.15)
 
 
+
+@pytest.mark.parametrize("seed", [614, 615])
+def test_measurement_noise_under_a_hum_of_0_8_std_is_not_dynamical_noise(seed):
+    """The same noise under a 0.8-std hum: dynamical noise leads round 1 far ahead (shrink
+    0.91-0.93 vs 0.72-0.75), beyond any slack a near-tie rule would give; its pair with the
+    hum leaves indicators off, so the runner-up is paired and the true pair wins."""
+    x = MG.simulate(N, random_state=seed)
+    noise = 0.035 * x.std() * np.random.default_rng(seed).standard_normal(N)
+    real = _hum(x, 0.0143, 0.8) + noise
+    rep = diagnose_gap(real, MG, random_state=1, n_jobs=1, cross_validated=False,
+                       effects=NOISES)
+    assert set(_found(rep)) == {"measurement_noise", "periodic_interference"}, rep.effects
+    fitted = dict(zip(rep.combined["effects"], rep.combined["params"], strict=True))
+    assert fitted["measurement_noise"]["noise"] == pytest.approx(0.035, rel=0.2)
+    assert fitted["periodic_interference"]["frequency"] == pytest.approx(0.0143,
+                                                                         abs=0.5 / N)
+
 def test_dynamical_noise_under_a_hum_stays_dynamical_noise():
     """The control: the true dynamical noise pairs better with the hum; no swap."""
     x = MG.simulate(N, random_state=621, dynamical_noise=0.005)
@@ -89,3 +106,49 @@ def test_a_runner_up_is_paired_with_effects_the_best_round_two_ranked_low(monkey
     pick = _diagnose._better_first(None, table, [object()] * 3, by_name, second,
                                    [best_pair], Parallel(n_jobs=1))
     assert pick == 1  # the hum, whose pair with the noise leaves 0.5 against 4.7
+
+
+def test_a_runner_up_far_behind_is_paired_when_the_best_pair_leaves_indicators_off(
+        monkeypatch):
+    """A strong hum lifts the wrong noise type far ahead in round 1 (Mackey-Glass, noise
+    0.034 + a 0.78-std hum, benchmark seed 10 312 000: dynamical noise 0.84 against 0.62);
+    the margin is no evidence, so the runner-up is paired all the same.  A candidate
+    below MIN_SHRINK is not."""
+    from types import SimpleNamespace
+
+    import pandas as pd
+    from joblib import Parallel
+
+    from skdelay.gap import _diagnose
+
+    table = pd.DataFrame({"effect": ["dynamical_noise", "measurement_noise",
+                                     "periodic_interference", "clipping"],
+                          "shrink": [0.84, 0.62, 0.46, 0.14], "status": ["ok"] * 4,
+                          "params": [{}] * 4, "consistent": [None] * 4})
+    second = pd.DataFrame({"effect": ["periodic_interference", "lowpass",
+                                      "measurement_noise", "clipping"],
+                           "status": ["ok"] * 4})
+    by_name = {name: SimpleNamespace(name=name) for name in
+               ["dynamical_noise", "measurement_noise", "periodic_interference",
+                "clipping", "lowpass"]}
+    tried = []
+
+    def fake_fit(effect, problem, chain, *args):
+        first = chain[0][0].name
+        tried.append(first)
+        good = {first, effect.name} == {"measurement_noise", "periodic_interference"}
+        return SimpleNamespace(ok=True, gap_after=16.5 if good else 150.0)
+
+    monkeypatch.setattr(_diagnose, "off_indicators", lambda problem, ev: {"band_spectrum": 1})
+    monkeypatch.setattr(_diagnose, "fit_effect", fake_fit)
+    pick = _diagnose._better_first(None, table, [object()] * 4, by_name, second,
+                                   [SimpleNamespace(gap=165.0)], Parallel(n_jobs=1))
+    assert pick == 1  # measurement noise: its pair with the hum leaves 16.5 against 165
+    assert "clipping" not in tried  # removes 14 % alone: below MIN_SHRINK, never paired
+
+    # a pair that explains the record is not reconsidered
+    monkeypatch.setattr(_diagnose, "off_indicators", lambda problem, ev: {})
+    tried.clear()
+    assert _diagnose._better_first(None, table, [object()] * 4, by_name, second,
+                                   [SimpleNamespace(gap=165.0)], Parallel(n_jobs=1)) is None
+    assert not tried
