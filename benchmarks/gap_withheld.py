@@ -743,8 +743,15 @@ def main(argv=None):
         both = [set(t.split("+")) == {f, s}
                 for t, f, s in zip(comb.true, comb.found, comb.second)]
         first = [f in t.split("+") for t, f in zip(comb.true, comb.found)]
+        # an undecided tie names two pairs sharing one effect (round 1's alternative with the
+        # same second, or round 2's alternative second on the same first); the hidden pair
+        # may be the other one (the report says the record cannot tell them apart)
+        tied_pair = [not b and isinstance(o, str) and set(t.split("+")) in ({o, s}, {f, o})
+                     for b, t, f, o, s in zip(both, comb.true, comb.found, comb.tie,
+                                              comb.second)]
         print(f"combined: first effect one of the two {np.mean(first):.0%}, both found "
-              f"{np.mean(both):.0%}")
+              f"{np.mean(both):.0%} ({sum(both)}/{len(both)}); otherwise reported as a tie "
+              f"whose other pair is the hidden one: {sum(tied_pair)}")
     print(f"median seconds per diagnosis: {df.seconds.median():.1f}")
     import os
 
