@@ -112,3 +112,20 @@ def test_a_few_bin_indicator_is_off_only_beyond_the_chi_square_tail():
     assert set(off_indicators(*_family(1.43, np.sqrt(2.43) * np.ones(100)))) == {"segment"}
     assert stats.chi2.sf(3.0 * 9, 9) < OFF_ALPHA / 10
     assert set(off_indicators(*_family(2.0, np.sqrt(3.0) * np.ones(9)))) == {"segment"}
+
+
+def test_a_line_is_judged_on_its_own_not_among_all_indicators():
+    """The spectral-line indicator's bins are lines the record was already shown to have:
+    each is one question.  z = 2.74 (p = 0.006 for one line) among ten indicators is off,
+    although a ten-bin indicator of the same mean z^2 is not; z = 1.5 (p = 0.13) is not."""
+    def family(z):
+        prob, ev = _family(float(np.mean(np.square(z))) - 1.0, z)
+        ev.gaps["spectral_line"] = ev.gaps.pop("segment")
+        ev.z["spectral_line"] = ev.z.pop("segment")
+        prob.null_by_indicator["spectral_line"] = prob.null_by_indicator.pop("segment")
+        return prob, ev
+
+    assert set(off_indicators(*family([2.74]))) == {"spectral_line"}
+    assert set(off_indicators(*family([0.3, 2.74]))) == {"spectral_line"}  # 0.05 / 2 lines
+    assert off_indicators(*family([1.5])) == {}
+    assert off_indicators(*_family(2.74**2 - 1.0, [2.74])) == {}  # "segment": one of ten
