@@ -11,6 +11,7 @@
   edge before the parameters are compared.
 """
 
+from itertools import pairwise
 from types import SimpleNamespace
 
 import pytest
@@ -100,3 +101,56 @@ def test_drift_extends_every_parameter_at_the_scan_edge_before_comparing():
     fit = ParameterDrift().search(problem, {}, objective)
     assert fit["parameter"] == "a"
     assert fit["end"] / 5.0 - 1.0 == pytest.approx(-0.30, abs=0.03)
+
+
+class _Valley:
+    """A gap that is flat (975) except in a notch 0.3 samples wide around ``centre``, like
+    Mackey-Glass's near tau = 16 (14 at 16.0 and 16.1, 133 at 16.2, 420 at 15.8)."""
+
+    def __init__(self, centre):
+        self.centre, self.best, self.calls = centre, (float("inf"), None), []
+
+    def __call__(self, params):
+        tau = params["tau"]
+        self.calls.append(tau)
+        gap = 1.0 + 974.0 * min(1.0, abs(tau - self.centre) / 0.3)
+        if gap < self.best[0]:
+            self.best = (gap, dict(params))
+        return gap
+
+
+@pytest.mark.parametrize("centre", [16.05, 19.71, 12.4])
+def test_a_delay_search_over_the_dip_window_cannot_step_over_a_narrow_notch(centre):
+    """Five grid points 3 samples apart over 11..23 and a few Brent steps missed such a
+    notch (the fit ended at 16.29 for a real 16.05); the grid's spacing is now at most half
+    the delay tolerance and Brent refines between the best point's neighbours."""
+    from skdelay.gap import DelayMismatch
+    from skdelay.gap._where import DELAY_TOL
+
+    ctx = _dips(real=21.7, sim=16.4, spread=6.5, comparable=False)
+    ctx.delay_samples, ctx.simulator = 17.0, SimpleNamespace(params={"tau": 17.0})
+    eff = DelayMismatch()
+    lo, hi = eff.search_bounds({"tau": 17.0}, ctx)["tau"]
+    assert (lo, hi) == (pytest.approx(11.0), pytest.approx(23.0))
+    objective = _Valley(centre)
+    fit = eff.search(ctx, {"tau": 17.0}, objective)
+    assert fit["tau"] == pytest.approx(centre, abs=0.05)
+    # the calls: the guess, the grid (in order), then Brent between two grid points
+    step = eff.GRID_STEP * DELAY_TOL
+    n_grid = round((hi - lo) / step) + 1
+    grid = objective.calls[1:1 + n_grid]
+    assert grid[0] == pytest.approx(lo) and grid[-1] == pytest.approx(hi)
+    assert max(b - a for a, b in pairwise(grid)) <= step + 1e-9
+
+
+def test_a_delay_near_the_edge_of_chaos_is_fitted_to_a_tenth_of_a_sample():
+    """Mackey-Glass with delay 16.05 against the model's 17: the gap is a notch in the delay
+    (see above), and both the whole record and each half are searched over the whole dip
+    window (the whole record's dip cannot be placed; a half's own dip seemed to, at 20)."""
+    real = MackeyGlass(tau=16.05).simulate(6000, random_state=7303)
+    rep = diagnose_gap(real, MackeyGlass(), random_state=4, n_jobs=1,
+                       effects=["delay_mismatch", "timebase_mismatch", "parameter_drift"])
+    row = rep.effects.set_index("effect").loc["delay_mismatch"]
+    assert rep.best_effect == "delay_mismatch", rep.effects[["effect", "shrink"]]
+    assert row["params"]["tau"] == pytest.approx(16.05, abs=0.1)
+    assert row["cross_validated"] and row["shrink"] > 0.9

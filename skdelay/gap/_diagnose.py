@@ -227,7 +227,7 @@ def consistency(problem, chain):
             out.append((eff.name, ok,
                         f"the fitted delay moves the dip by {fit:+.2f} samples, the real data's "
                         f"dip lies {seen:+.2f} samples from the model's (tolerance {tol:.2f})"
-                        + ("" if comparable else "; but the real data's dip is too shallow "
+                        + ("" if comparable else "; the real data's dip is too shallow "
                            "to place against the model's")))
         elif eff.name == "timebase_mismatch":
             factor = float(params["factor"])

@@ -285,6 +285,12 @@ class GapReport:
         if self.explained == "fully":
             verb = "explain" if len(names) > 1 else "explains"
             which = f"{label} {verb} it: {row['description']}."
+        elif self._only_unchecked():
+            # nothing is left over; only the independent evidence fails to back the fit
+            failed = "; ".join(text for _, ok, text in self.checks if not ok)
+            which = (f"{label} account{'' if len(names) > 1 else 's'} for it "
+                     f"({100 * self.shrink:.0f} %), but the data's own evidence does not "
+                     f"confirm the fitted values: {failed}.")
         else:
             which = (f"{label} account{'' if len(names) > 1 else 's'} for part of it "
                      f"({100 * self.shrink:.0f} %); the rest lies outside the effect library.")
@@ -295,6 +301,12 @@ class GapReport:
                f"{self.gap_before:.3g} to {self.gap_after:.3g} ({100 * self.shrink:.0f} % "
                f"removed{cv}), {state} the no-gap threshold {thr:.3g}.")
         return f"{where} {which} {far}"
+
+    def _only_unchecked(self):
+        """Is every reason against "fully" a failed independent-evidence check (no indicator
+        still off, no dip the simulator lacks)?"""
+        failed = {text for _, ok, text in self.checks if not ok}
+        return bool(failed) and set(self.reasons) <= failed
 
     def _details(self):
         """The lab-book paragraph: data, discrepancies, fitted values, runner-up, residual."""

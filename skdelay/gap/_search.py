@@ -30,12 +30,16 @@ def _transform(effect, key, lo, hi):
 KEEP_GUESS = {"observation": (0.25, 0.02), "simulation": (1.0, 0.1)}
 
 
-def generic_search(effect, problem, guess, objective):
+def generic_search(effect, problem, guess, objective, n_grid=None, n_refine=None):
     """Bounded grid + Brent (1-D) or Nelder-Mead (2-D) search around ``guess``.
 
     Returns the guess itself when the search cannot beat it clearly (flat,
     noisy objective): the signature estimate (line amplitude from the DFT,
     ADC step from the distinct values, ...) is then the better value.
+    ``n_grid``, ``n_refine``: points of the 1-D grid and Brent iterations
+    between its neighbours (defaults ``GRID`` and ``REFINE`` for the effect's
+    target; an effect whose objective has features narrower than the default
+    spacing asks for more).
     """
     space = effect.search_bounds(guess, problem)
     keys = list(space)
@@ -43,14 +47,15 @@ def generic_search(effect, problem, guess, objective):
     gap_guess = objective(guess)
     if not keys:
         return guess
-    best = _bounded_search(effect, problem, guess, objective, space, keys, kind)
+    best = _bounded_search(effect, problem, guess, objective, space, keys, kind,
+                           n_grid or GRID[kind], REFINE[kind] if n_refine is None else n_refine)
     absolute, relative = KEEP_GUESS[kind]
     if objective.best[0] < gap_guess - max(absolute, relative * gap_guess):
         return best
     return guess
 
 
-def _bounded_search(effect, problem, guess, objective, space, keys, kind):
+def _bounded_search(effect, problem, guess, objective, space, keys, kind, n_grid, n_refine):
     tr = {k: _transform(effect, k, *space[k]) for k in keys}
 
     def params_of(vec):
@@ -67,14 +72,14 @@ def _bounded_search(effect, problem, guess, objective, space, keys, kind):
                         tr[k][0], tr[k][1])) for k in keys]
     if len(keys) == 1:
         lo, hi = tr[keys[0]][0], tr[keys[0]][1]
-        grid = np.linspace(lo, hi, GRID[kind])
+        grid = np.linspace(lo, hi, n_grid)
         values = np.array([f(g) for g in grid])
         i = int(np.argmin(values))
-        if np.isfinite(values[i]) and REFINE[kind] > 0:
+        if np.isfinite(values[i]) and n_refine > 0:
             a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
             if b > a:
                 optimize.minimize_scalar(f, bounds=(a, b), method="bounded",
-                                         options={"maxiter": REFINE[kind],
+                                         options={"maxiter": n_refine,
                                                   "xatol": 1e-3 * (hi - lo)})
     else:
         bounds = [(tr[k][0], tr[k][1]) for k in keys]
