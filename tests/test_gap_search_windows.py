@@ -154,3 +154,9 @@ def test_a_delay_near_the_edge_of_chaos_is_fitted_to_a_tenth_of_a_sample():
     assert rep.best_effect == "delay_mismatch", rep.effects[["effect", "shrink"]]
     assert row["params"]["tau"] == pytest.approx(16.05, abs=0.1)
     assert row["cross_validated"] and row["shrink"] > 0.9
+    # nothing is left over, but the shallow dip cannot confirm the delay: the headline says
+    # so instead of placing a rest outside the library
+    assert rep.explained == "partly" and len(rep.reasons) == 1
+    assert "too shallow" in rep.reasons[0]
+    head = rep.headline()
+    assert "does not confirm the fitted values" in head and "outside" not in head
