@@ -129,3 +129,19 @@ def test_held_out_share_is_used_only_where_the_half_can_test_the_effect(cv_befor
     assert row["shrink"] == pytest.approx(shrink)
     assert row["shrink_fit"] == pytest.approx(0.9)
     assert bool(row["cross_validated"]) is tested
+
+
+def test_spikes_only_in_the_held_out_half_leave_the_outliers_untested_not_failed():
+    """Three spikes, all in the second half: the first half has none to fit (the effect
+    does not apply there), so the split cannot test the outliers.  They keep their in-sample
+    share instead of ranking last as "failed on the held-out half"."""
+    x = MG.simulate(6000, random_state=7102)
+    real = x.copy()
+    for i, sign in ((3400, 1), (4300, -1), (5500, 1)):
+        real[i] += sign * 4.0 * x.std()
+    rep = diagnose_gap(real, MG, random_state=5, n_jobs=1,
+                       effects=["outliers", "measurement_noise", "dynamical_noise"])
+    assert rep.best_effect == "outliers", rep.effects[["effect", "shrink", "status"]]
+    row = rep.effects.set_index("effect").loc["outliers"]
+    assert not row["cross_validated"] and np.isnan(row["cv_gap_after"])
+    assert row["shrink"] == row["shrink_fit"] > 0.9

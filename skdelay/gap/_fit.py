@@ -28,7 +28,9 @@ class FitResult:
     effect on every indicator (NaN when failed), ``gap_fast`` the search's
     best gap on the fast indicators, ``gaps`` the gap per indicator.
     ``params`` are the fitted values (the starting guess when the fit failed
-    after it, else empty).
+    after it, else empty).  ``applicable`` is False when the effect cannot act
+    on these data at all (:class:`NotApplicable`: no spike in the record for
+    outliers, no delay parameter in the simulator).
     """
 
     effect: str
@@ -41,6 +43,7 @@ class FitResult:
     gaps: dict = field(default_factory=dict)
     n_evals: int = 0
     seconds: float = 0.0
+    applicable: bool = True
     evaluation: object = field(default=None, repr=False, compare=False)
 
     @property
@@ -117,7 +120,8 @@ def _fit(effect, problem, base_chain, final=True):
         return FitResult(effect=effect.name, target=effect.target,
                          params=_clean(guess) if guess else {}, status="failed",
                          reason=str(exc), n_evals=objective.n_evals,
-                         seconds=time.perf_counter() - t0)
+                         seconds=time.perf_counter() - t0,
+                         applicable=not isinstance(exc, NotApplicable))
     return FitResult(effect=effect.name, target=effect.target, params=_clean(params),
                      gap_after=final.gap, gap_fast=objective.best[0], gaps=final.gaps,
                      n_evals=objective.n_evals, seconds=time.perf_counter() - t0,
