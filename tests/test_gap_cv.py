@@ -145,3 +145,18 @@ def test_spikes_only_in_the_held_out_half_leave_the_outliers_untested_not_failed
     row = rep.effects.set_index("effect").loc["outliers"]
     assert not row["cross_validated"] and np.isnan(row["cv_gap_after"])
     assert row["shrink"] == row["shrink_fit"] > 0.9
+
+
+def test_spikes_only_in_the_fitting_half_are_not_refuted_by_the_spike_free_half():
+    """The mirror case: three spikes in the first half, none in the second.  Spikes added to
+    the spike-free half would raise its gap, but a half holds none of three with probability
+    1/8: the half cannot test them either."""
+    x = MG.simulate(6000, random_state=7103)
+    real = x.copy()
+    for i, sign in ((400, 1), (1300, -1), (2500, 1)):
+        real[i] += sign * 4.0 * x.std()
+    rep = diagnose_gap(real, MG, random_state=6, n_jobs=1,
+                       effects=["outliers", "measurement_noise", "dynamical_noise"])
+    assert rep.best_effect == "outliers", rep.effects[["effect", "shrink", "status"]]
+    row = rep.effects.set_index("effect").loc["outliers"]
+    assert not row["cross_validated"] and row["shrink"] == row["shrink_fit"] > 0.9

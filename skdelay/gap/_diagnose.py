@@ -11,8 +11,15 @@ from scipy import stats
 from threadpoolctl import threadpool_limits
 
 from .._checks import check_positive_int, check_series
-from ._effects import CandidateFailed, EffectFailed, call_hook, is_builtin, resolve_effects
-from ._fit import fit_effect
+from ._effects import (
+    CandidateFailed,
+    EffectFailed,
+    NotApplicable,
+    call_hook,
+    is_builtin,
+    resolve_effects,
+)
+from ._fit import fit_effect, initial_params
 from ._lines import F_ALPHA, without_lines
 from ._problem import GapProblem
 from ._range import range_test
@@ -419,12 +426,14 @@ def cross_validate(effects, parts, parallel, chain=()):
     fits = parallel(delayed(fit_effect)(e, fit_part, list(chain), False) for e in effects)
     out = {}
     for eff, res in zip(effects, fits):
-        if not res.applicable:
-            # the fitting half lacks the effect's signature altogether, so the split cannot
-            # test it and the candidate stays uncross-validated (its in-sample share stands).
-            # Mackey-Glass with spikes at a rate of 0.001 (6000 samples): all three fell in
+        if not (res.applicable and _applies(eff, score_part)):
+            # a half lacks the effect's signature altogether, so the split cannot test it
+            # and the candidate stays uncross-validated (its in-sample share stands).
+            # Mackey-Glass with spikes at a rate of 0.0005 (6000 samples): all three fell in
             # the second half; the first had none to fit, and "failed on the held-out half"
-            # ranked the outliers (in-sample shrink 0.99) last, so nothing was named
+            # ranked the outliers (in-sample shrink 0.99) last, so nothing was named.  With
+            # all of them in the first half, the spikes added to the spike-free second half
+            # would have "refuted" them (a half holds none with probability 1/8)
             continue
         out[eff.name] = (np.nan, {})
         if not res.ok:
@@ -435,6 +444,18 @@ def cross_validate(effects, parts, parallel, chain=()):
             continue
         out[eff.name] = (float(gap), res.params)
     return float(before), out, float(np.median(score_part.null_gaps))
+
+
+def _applies(effect, part):
+    """Does the effect have anything to act on in this part (no :class:`NotApplicable`
+    from its starting guess: outliers need at least one spike)?"""
+    try:
+        initial_params(effect, part)
+    except NotApplicable:
+        return False
+    except CandidateFailed:  # a user effect's failure is judged by the scoring itself
+        pass
+    return True
 
 
 def pin_choices(parts, results):
