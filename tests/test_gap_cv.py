@@ -34,8 +34,21 @@ def test_drift_continues_its_ramp_on_the_held_out_half():
                                                "end": pytest.approx(0.114)}
     const = {"parameter": "b", "start": 0.11, "end": 0.11}
     assert drift.transfer(const, 5000, 5000) == const
-    hum = {"frequency": 0.1, "amplitude": 0.05, "phase": 0.0}
-    assert get_effect("periodic_interference").transfer(hum, 5000, 5000) == hum
+
+
+
+@pytest.mark.parametrize("frequency, dt", [(0.1, 1.0), (5e-5, 1.0), (0.013, 0.25)])
+def test_a_hum_carries_its_phase_over_to_the_held_out_half(frequency, dt):
+    """The held-out half continues the sinusoid fitted on the first: a slow hum (1.5 cycles
+    per half) restarted at its fitted phase ran against the record's."""
+    eff = get_effect("periodic_interference")
+    fit = {"frequency": frequency, "amplitude": 0.05, "phase": 0.4}
+    h = 30_000
+    whole = eff.apply(np.zeros(2 * h) + 1.0, fit, sample_dt=dt)
+    moved = eff.transfer(fit, h, h, sample_dt=dt)
+    assert moved["frequency"] == frequency and moved["amplitude"] == 0.05
+    second = eff.apply(np.zeros(h) + 1.0, moved, sample_dt=dt)
+    np.testing.assert_allclose(second, whole[h:], atol=1e-9)
 
 
 @pytest.fixture(scope="module")

@@ -418,7 +418,10 @@ def cross_validate(effects, parts, parallel, chain=()):
     h_fit, h_score = fit_part.n_samples, score_part.n_samples
 
     def moved(eff, params):
-        return call_hook(eff, "transfer", params, h_fit, h_score)
+        # the built-in hum also needs the step, to carry its phase over (a user effect's
+        # transfer() keeps the documented three arguments)
+        extra = {"sample_dt": fit_part.sample_dt} if is_builtin(eff) else {}
+        return call_hook(eff, "transfer", params, h_fit, h_score, **extra)
 
     score_chain = [(e, moved(e, p)) for e, p in chain]
     before = score_part.evaluate(score_chain, "full").gap if chain else score_part.before.gap

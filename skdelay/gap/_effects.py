@@ -209,12 +209,14 @@ class Effect:
         """
         return generic_search(self, problem, guess, objective)
 
-    def transfer(self, params, n_fit, n_score):
+    def transfer(self, params, n_fit, n_score, sample_dt=1.0):
         """Parameters fitted on the first ``n_fit`` samples, for the next ``n_score`` samples.
 
         Cross-validation fits on the first half of the record and scores on
         the second.  Default: the same values (stationary effects); a drift
-        overrides this to continue its ramp.
+        overrides this to continue its ramp, a hum to carry its phase on.
+        ``sample_dt`` (time units per sample) is passed to the built-in effects
+        only; a registered effect is called with the first three arguments.
         """
         return dict(params)
 

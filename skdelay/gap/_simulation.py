@@ -403,7 +403,7 @@ class ParameterDrift(Effect):
         order = np.argsort(scores)[::-1]
         return [keys[i] for i in order]
 
-    def transfer(self, params, n_fit, n_score):
+    def transfer(self, params, n_fit, n_score, sample_dt=1.0):
         """The linear ramp fitted on the first ``n_fit`` samples, continued over the next
         ``n_score`` ones (a constant mismatch stays constant)."""
         start, end = float(params["start"]), float(params["end"])
