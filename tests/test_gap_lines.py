@@ -78,6 +78,10 @@ def test_mains_hum_found_reported_in_hz_and_on_top_of_where(mains_report):
     bin_hz = 1.0 / (60_000 * 1e-6)
     assert abs(p["frequency"] * 1e6 - 50.0) < bin_hz  # cycles per us -> Hz
     assert p["amplitude"] == pytest.approx(0.05, rel=0.2)
+    # held out too: the hum continues into the second half with its phase carried over (1.5
+    # cycles per half; restarted at the fitted phase it left 0.55 of that half's gap)
+    row = rep.effects.set_index("effect").loc["periodic_interference"]
+    assert row["cross_validated"] and row["shrink"] > 0.9
     top = rep.where.iloc[0]
     assert top.indicator == "spectrum" and top.feature == "spectral line"
     assert top.unit == "Hz" and top.low <= 50.0 <= top.high
