@@ -288,9 +288,10 @@ class GapReport:
         elif self._only_unchecked():
             # nothing is left over; only the independent evidence fails to back the fit
             failed = "; ".join(text for _, ok, text in self.checks if not ok)
-            which = (f"{label} account{'' if len(names) > 1 else 's'} for it "
-                     f"({100 * self.shrink:.0f} %), but the data's own evidence does not "
-                     f"confirm the fitted values: {failed}.")
+            which = (f"{label} remove{'' if len(names) > 1 else 's'} "
+                     f"{100 * self.shrink:.0f} % of it and leave{'' if len(names) > 1 else 's'} "
+                     "no indicator off, but the data's own evidence does not confirm the "
+                     f"fitted values: {failed}.")
         else:
             which = (f"{label} account{'' if len(names) > 1 else 's'} for part of it "
                      f"({100 * self.shrink:.0f} %); the rest lies outside the effect library.")
