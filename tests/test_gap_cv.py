@@ -173,3 +173,25 @@ def test_spikes_only_in_the_fitting_half_are_not_refuted_by_the_spike_free_half(
     assert rep.best_effect == "outliers", rep.effects[["effect", "shrink", "status"]]
     row = rep.effects.set_index("effect").loc["outliers"]
     assert not row["cross_validated"] and row["shrink"] == row["shrink_fit"] > 0.9
+
+
+def test_an_untested_candidate_ranks_by_its_in_sample_share_against_tested_ones():
+    """Untested outliers (0.79 in-sample) go after a drift that removes 0.98 in-sample though
+    only 0.62 held out, and before noise that removes 0.67 in-sample; an untested candidate
+    that removes more in-sample than every tested one leads."""
+    import pandas as pd
+
+    from skdelay.gap._diagnose import _untested_in_place
+
+    df = pd.DataFrame({
+        "effect": ["outliers", "parameter_drift", "dynamical_noise", "clipping", "quantization"],
+        "status": ["ok", "ok", "ok", "ok", "failed"],
+        "shrink": [0.79, 0.62, 0.54, 0.05, np.nan],
+        "shrink_fit": [0.79, 0.98, 0.67, 0.05, np.nan]})
+    scores = {"parameter_drift": (27.1, {}), "dynamical_noise": (32.8, {})}
+    order = _untested_in_place(df, scores)
+    assert list(df.loc[order, "effect"]) == ["parameter_drift", "outliers", "dynamical_noise",
+                                             "clipping", "quantization"]
+    df.loc[0, ["shrink", "shrink_fit"]] = 0.995
+    order = _untested_in_place(df, scores)
+    assert df.loc[order, "effect"].iloc[0] == "outliers"

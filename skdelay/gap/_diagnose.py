@@ -560,9 +560,34 @@ def _table(results, gap_before, problem, by_name, cv=None):
     df["_failed"] = (df["status"] != "ok").astype(int) + df["gap_after"].isna().astype(int)
     df["_key"] = df["gap_after"].fillna(df["gap_after_fit"])
     df = df.sort_values(["_failed", "_key"], kind="stable").drop(columns=["_failed", "_key"])
+    if cv is not None:
+        df = df.loc[_untested_in_place(df, cv[1])]
     df = df.reset_index(drop=True)
     evaluations = list(df.pop("_evaluation"))
     return df, evaluations
+
+
+def _untested_in_place(df, scores):
+    """Row order with each candidate the split did not test (a half lacks its signature)
+    after every tested one that removes at least as much in-sample: the two are compared
+    on the footing the untested one was measured on.
+
+    Electro-optic oscillator (6000 samples, beta drifting from 5 to 6.34, benchmark seed
+    10 935 000): two samples of the drift looked like spikes, both in one half; the
+    untested outliers kept their in-sample share 0.79 and ranked above the true drift,
+    0.62 held out but 0.98 in-sample.
+    """
+    ok = df["status"].eq("ok") & df["shrink"].notna()
+    untested = ok & ~df["effect"].isin(list(scores))
+    tested = [i for i in df.index if not untested[i]]
+    comparable = set(df.index[ok & ~untested])
+    order = list(tested)
+    for i in df.index[untested][np.argsort(-df.loc[untested, "shrink_fit"].to_numpy(),
+                                           kind="stable")]:
+        after = [k + 1 for k, j in enumerate(order)
+                 if j in comparable and df.at[j, "shrink_fit"] >= df.at[i, "shrink_fit"]]
+        order.insert(max(after, default=0), i)
+    return order
 
 
 def _second_round(problem, candidates, by_name, chain, after, parallel, cv, parts):
