@@ -109,11 +109,12 @@ class _Valley:
 
     def __init__(self, centre):
         self.centre, self.best, self.calls = centre, (float("inf"), None), []
+        self.width = 0.3
 
     def __call__(self, params):
         tau = params["tau"]
         self.calls.append(tau)
-        gap = 1.0 + 974.0 * min(1.0, abs(tau - self.centre) / 0.3)
+        gap = 1.0 + 974.0 * min(1.0, abs(tau - self.centre) / self.width)
         if gap < self.best[0]:
             self.best = (gap, dict(params))
         return gap
@@ -160,3 +161,18 @@ def test_a_delay_near_the_edge_of_chaos_is_fitted_to_a_tenth_of_a_sample():
     assert "too shallow" in rep.reasons[0]
     head = rep.headline()
     assert "does not confirm the fitted values" in head and "outside" not in head
+
+
+def test_a_long_delays_window_is_searched_with_a_bounded_number_of_points():
+    """A delay of 400 samples whose dip cannot be placed: a window of +-100 samples is not
+    searched at half a sample (401 simulations) but on MAX_GRID points plus Brent."""
+    from skdelay.gap import DelayMismatch
+
+    ctx = _dips(real=300.0, sim=400.0, spread=30.0, comparable=False)
+    ctx.delay_samples, ctx.simulator = 400.0, SimpleNamespace(params={"tau": 400.0})
+    eff = DelayMismatch()
+    objective = _Valley(371.3)
+    objective.width = 3.0
+    fit = eff.search(ctx, {"tau": 400.0}, objective)
+    assert len(objective.calls) <= 1 + eff.MAX_GRID + eff.REFINE + 2
+    assert fit["tau"] == pytest.approx(371.3, abs=0.5)

@@ -223,15 +223,19 @@ class DelayMismatch(Effect):
     #: one-sample bracket down to about a twentieth of a sample, the scale on which that gap
     #: still changes (the fast evaluations of a delay cost 0.02-0.07 s at 6000 samples)
     REFINE = 6
+    #: at most this many grid points: the electro-optic oscillator's whole dip window (+-20
+    #: samples at step 0.25) at GRID_STEP, about 2 s of fast evaluations at 6000 samples.  A
+    #: delay of hundreds of samples (window +-25 %) gets a coarser grid, not minutes of them.
+    MAX_GRID = 81
 
     def search(self, problem, guess, objective):
         """The default search (:meth:`Effect.search`) with grid points at most
-        ``GRID_STEP * DELAY_TOL`` samples apart."""
+        ``GRID_STEP * DELAY_TOL`` samples apart (at most ``MAX_GRID`` of them)."""
         from ._where import DELAY_TOL
 
         lo, hi = self.search_bounds(guess, problem)["tau"]
         step = self.GRID_STEP * DELAY_TOL * problem.sample_dt
-        n_grid = max(GRID[self.target], int(np.ceil((hi - lo) / step)) + 1)
+        n_grid = int(np.clip(np.ceil((hi - lo) / step) + 1, GRID[self.target], self.MAX_GRID))
         return generic_search(self, problem, guess, objective, n_grid=n_grid,
                               n_refine=self.REFINE)
 
