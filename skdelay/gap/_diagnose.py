@@ -568,9 +568,10 @@ def _table(results, gap_before, problem, by_name, cv=None):
 
 
 def _untested_in_place(df, scores):
-    """Row order with each candidate the split did not test (a half lacks its signature)
+    """Row order with each candidate the split could not test (a half lacks its signature)
     after every tested one that removes at least as much in-sample: the two are compared
-    on the footing the untested one was measured on.
+    on the footing the untested one was measured on.  Every other row keeps its place by
+    the gap, so the table stays sorted by it unless a half lacked a signature.
 
     Electro-optic oscillator (6000 samples, beta drifting from 5 to 6.34, benchmark seed
     10 935 000): two samples of the drift looked like spikes, both in one half; the
@@ -578,7 +579,9 @@ def _untested_in_place(df, scores):
     0.62 held out but 0.98 in-sample.
     """
     ok = df["status"].eq("ok") & df["shrink"].notna()
-    untested = ok & ~df["effect"].isin(list(scores))
+    # (a candidate removing less than CV_MIN_FIT_SHRINK in-sample was not offered to the split
+    # and keeps its place by the gap: it can lead nothing)
+    untested = ok & ~df["effect"].isin(list(scores)) & (df["shrink_fit"] >= CV_MIN_FIT_SHRINK)
     tested = [i for i in df.index if not untested[i]]
     comparable = set(df.index[ok & ~untested])
     order = list(tested)
