@@ -144,35 +144,27 @@ def test_held_out_share_is_used_only_where_the_half_can_test_the_effect(cv_befor
     assert bool(row["cross_validated"]) is tested
 
 
-def test_spikes_only_in_the_held_out_half_leave_the_outliers_untested_not_failed():
-    """Three spikes, all in the second half: the first half has none to fit (the effect
-    does not apply there), so the split cannot test the outliers.  They keep their in-sample
-    share instead of ranking last as "failed on the held-out half"."""
-    x = MG.simulate(6000, random_state=7102)
+@pytest.mark.parametrize("seed, at, state", [
+    # all three in the second half: the first has none to fit (the effect does not apply
+    # there), and "failed on the held-out half" ranked the outliers last
+    (7102, (3400, 4300, 5500), 5),
+    # the mirror case: spikes added to the spike-free second half would raise its gap and
+    # "refute" them, but a half holds none of three with probability 1/8
+    (7103, (400, 1300, 2500), 6),
+])
+def test_spikes_all_in_one_half_leave_the_outliers_untested_not_failed(seed, at, state):
+    """Three spikes in one half: the split cannot test the outliers, which keep their
+    in-sample share."""
+    x = MG.simulate(6000, random_state=seed)
     real = x.copy()
-    for i, sign in ((3400, 1), (4300, -1), (5500, 1)):
+    for i, sign in zip(at, (1, -1, 1)):
         real[i] += sign * 4.0 * x.std()
-    rep = diagnose_gap(real, MG, random_state=5, n_jobs=1,
+    rep = diagnose_gap(real, MG, random_state=state, n_jobs=1,
                        effects=["outliers", "measurement_noise", "dynamical_noise"])
     assert rep.best_effect == "outliers", rep.effects[["effect", "shrink", "status"]]
     row = rep.effects.set_index("effect").loc["outliers"]
     assert not row["cross_validated"] and np.isnan(row["cv_gap_after"])
     assert row["shrink"] == row["shrink_fit"] > 0.9
-
-
-def test_spikes_only_in_the_fitting_half_are_not_refuted_by_the_spike_free_half():
-    """The mirror case: three spikes in the first half, none in the second.  Spikes added to
-    the spike-free half would raise its gap, but a half holds none of three with probability
-    1/8: the half cannot test them either."""
-    x = MG.simulate(6000, random_state=7103)
-    real = x.copy()
-    for i, sign in ((400, 1), (1300, -1), (2500, 1)):
-        real[i] += sign * 4.0 * x.std()
-    rep = diagnose_gap(real, MG, random_state=6, n_jobs=1,
-                       effects=["outliers", "measurement_noise", "dynamical_noise"])
-    assert rep.best_effect == "outliers", rep.effects[["effect", "shrink", "status"]]
-    row = rep.effects.set_index("effect").loc["outliers"]
-    assert not row["cross_validated"] and row["shrink"] == row["shrink_fit"] > 0.9
 
 
 def test_an_untested_candidate_ranks_by_its_in_sample_share_against_tested_ones():
