@@ -14,6 +14,7 @@
 from itertools import pairwise
 from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
 from skdelay.gap import TimebaseMismatch, diagnose_gap, get_effect
@@ -101,6 +102,45 @@ def test_drift_extends_every_parameter_at_the_scan_edge_before_comparing():
     fit = ParameterDrift().search(problem, {}, objective)
     assert fit["parameter"] == "a"
     assert fit["end"] / 5.0 - 1.0 == pytest.approx(-0.30, abs=0.03)
+
+
+class _RoughGap:
+    """A drift's gap with its minimum at +8 %: smooth on every run of the ensemble
+    (``precise``), rough on the scan's two runs (``__call__``: the half steps, where the
+    refinement looks, scatter by +-2)."""
+
+    def __init__(self, v0):
+        self.v0, self.precise_calls = v0, 0
+
+    def exact(self, p):
+        if p["start"] != self.v0:
+            return 1e3  # a constant offset does not fit this record
+        return 1.0 + 400.0 * (p["end"] / self.v0 - 1.08) ** 2
+
+    def __call__(self, p):
+        rel = p["end"] / self.v0 - 1.0
+        on_grid = min(abs(rel - r) for r in (-0.12, -0.05, -0.02, 0.02, 0.05, 0.12)) < 1e-9
+        return self.exact(p) + (0.0 if on_grid else 2.0 * np.sign(np.sin(977.0 * rel)))
+
+    def precise(self, p):
+        self.precise_calls += 1
+        return self.exact(p)
+
+
+def test_drift_refinement_compares_on_the_whole_ensemble():
+    """The coarse scan places the bracket; the refinement compares its points on every run
+    (the objective's ``precise``), so the two runs' scatter cannot move the end value."""
+    from skdelay.gap import ParameterDrift
+
+    sim = SimpleNamespace(params={"tau": 10.0, "mu": 20.0})
+    gap = _RoughGap(20.0)
+    fit = ParameterDrift().search(SimpleNamespace(simulator=sim), {}, gap)
+    assert fit["parameter"] == "mu" and fit["start"] == 20.0
+    assert fit["end"] / 20.0 - 1.0 == pytest.approx(0.08, abs=0.005)
+    assert gap.precise_calls >= 5
+    # a plain callable (a user's objective) still works: it is its own precise gap
+    plain = ParameterDrift().search(SimpleNamespace(simulator=sim), {}, gap.exact)
+    assert plain["end"] / 20.0 - 1.0 == pytest.approx(0.08, abs=0.005)
 
 
 class _Valley:

@@ -76,6 +76,16 @@ class _Objective:
             self.best = (gap, dict(params))
         return gap
 
+    def precise(self, params):
+        """The same gap on every run of the ensemble (a search's final comparisons)."""
+        self.n_evals += 1
+        try:
+            return self.problem.evaluate(self.base_chain + [(self.effect, params)], "fast",
+                                         n_search=len(self.problem.sim_seeds)).gap
+        except CandidateFailed as exc:
+            self.last_error = exc
+            return np.inf
+
 
 def fit_effect(effect, problem, base_chain=(), final=True):
     """Fit ``effect`` on top of ``base_chain``; return a :class:`FitResult`.

@@ -214,8 +214,12 @@ class GapProblem:
     def _effect_seed(self, j, name):
         return np.random.SeedSequence([self.effect_seed, int(j), zlib.crc32(name.encode())])
 
-    def ensemble(self, chain, tier="full"):
-        """Runs of simulator + chain (list of ``(effect, params)``)."""
+    def ensemble(self, chain, tier="full", n_search=None):
+        """Runs of simulator + chain (list of ``(effect, params)``).
+
+        ``tier="fast"`` simulates ``search_length`` samples with the first ``n_search``
+        seeds (default ``search_sims``); ``"full"`` the whole record with every seed.
+        """
         sim_part = [(e, p) for e, p in chain if e.target == "simulation"]
         obs_part = sorted(((e, p) for e, p in chain if e.target == "observation"),
                           key=lambda item: item[0].stage)
@@ -224,7 +228,7 @@ class GapProblem:
             overrides.update(call_hook(eff, "overrides", params, self.simulator))
         if overrides:
             if tier == "fast":
-                n, seeds = self.search_length, self.sim_seeds[: self.search_sims]
+                n, seeds = self.search_length, self.sim_seeds[: n_search or self.search_sims]
             else:
                 n, seeds = self.n_samples, self.sim_seeds
             runs = [run_simulator(self.simulator, n, self.sample_dt, s, overrides) for s in seeds]
@@ -248,9 +252,10 @@ class GapProblem:
         feats = profiles({k: self.indicators[k] for k in names}, [run])
         return {k: f[0] for k, (f, _) in feats.items()}
 
-    def evaluate(self, chain, tier="full", keep_runs=False):
-        """:class:`Evaluation` of real vs simulator + chain (``tier='fast'``: cheap indicators)."""
-        runs = self.ensemble(chain, tier)
+    def evaluate(self, chain, tier="full", keep_runs=False, n_search=None):
+        """:class:`Evaluation` of real vs simulator + chain (``tier='fast'``: cheap indicators,
+        on ``n_search`` runs: see :meth:`ensemble`)."""
+        runs = self.ensemble(chain, tier, n_search)
         names = [k for k, ind in self.indicators.items() if tier == "full" or ind.tier == "fast"]
         feats = profiles({k: self.indicators[k] for k in names}, runs)
         ev = self._compare({k: f for k, (f, _) in feats.items()}, runs)
