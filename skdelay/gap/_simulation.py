@@ -311,6 +311,10 @@ class ParameterDrift(Effect):
         every parameter whose best point lies at the scan's edge, parabolic refinement of
         the best one, then the same change as a constant offset.
 
+        The refinement's comparisons use ``objective.precise`` where the objective has
+        one (the fit's objective: the same gap on every run of the ensemble instead of
+        the scan's few); a plain callable serves for both.
+
         Every parameter is extended before they are compared: an edge point is not that
         parameter's best.  On the electro-optic oscillator with beta drifting 5 -> 3.55
         (6000 samples at step 0.25, benchmark seed 9.4e6) beta's gap was 34 at -12 % and 7
