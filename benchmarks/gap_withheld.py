@@ -28,7 +28,8 @@ Strength is drawn as ``u ~ U(0, 1)`` mapped (log-linearly) between the weak
 and strong ends of each effect's range; ``u < 1/3`` is "weak",
 ``1/3 <= u < 2/3`` "moderate", ``u >= 2/3`` "strong".  Ranges are relative to
 the system: hums by their line power over the signal's continuum (SNR 10 to
-640), and on Ikeda and the electro-optic oscillator the effects whose onset of
+640; in a pair, over the continuum of the record with the other cause: beside
+noise, the noise floor), and on Ikeda and the electro-optic oscillator the effects whose onset of
 significance lies above the Mackey-Glass ranges by multiples of that onset
 (``ONSET``, measured with ``--calibrate`` on calibration seeds); effects that
 no strength tried made significant there are left out (``EXCLUDED``).  Seeds start at
@@ -610,7 +611,7 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=9_000_000)
     ap.add_argument("--strength", choices=STRENGTHS, default=None,
                     help="draw every single-effect case in this strength class "
-                         "(default: case i of an effect in class i % 3)")
+                         "(default: case i of an effect in class i %% 3)")
     ap.add_argument("--runtime-only", action="store_true")
     ap.add_argument("--calibrate", nargs="+", metavar="EFFECT[:PARAM]:S1,S2,..",
                     help="print the onset table (significant share per strength) for the "
