@@ -159,7 +159,8 @@ def test_held_out_share_is_used_only_where_the_half_can_test_the_effect(cv_befor
                           status="ok", reason="", target=eff.target, n_evals=1, seconds=0.0,
                           evaluation=None)
     problem = SimpleNamespace(real=np.arange(10.0), time_unit=None, sample_dt=1.0)
-    cv = (cv_before, {eff.name: (cv_after, {})}, 1.0)  # the half's no-gap level: 1
+    # gaps summed over the held-out halves; their summed no-gap level: 1
+    cv = (cv_before, {eff.name: (cv_after, ({}, {}), cv_before, 1.0)}, 1.0)
     table, _ = _table([res], 5.0, problem, {eff.name: eff}, cv)
     row = table.iloc[0]
     assert row["shrink"] == pytest.approx(shrink)

@@ -160,6 +160,10 @@ class Effect:
     #: tries the effects whose signature covers an indicator that is still off
     #: (empty: always tried)
     signature: ClassVar[tuple] = ()
+    #: the parameters are tied to the start of the record (a drift that starts at the
+    #: simulator's value): fitted on its second half they would mean something else, so
+    #: cross-validation fits such an effect on the first half only
+    anchored_at_start = False
 
     # ----------------------------------------------------------------- API
     def guess(self, real, sim, sample_dt):
@@ -209,14 +213,17 @@ class Effect:
         """
         return generic_search(self, problem, guess, objective)
 
-    def transfer(self, params, n_fit, n_score, sample_dt=1.0):
-        """Parameters fitted on the first ``n_fit`` samples, for the next ``n_score`` samples.
+    def transfer(self, params, n_fit, n_score, sample_dt=1.0, backward=False):
+        """Parameters fitted on ``n_fit`` samples, for the next ``n_score`` samples.
 
-        Cross-validation fits on the first half of the record and scores on
-        the second.  Default: the same values (stationary effects); a drift
-        overrides this to continue its ramp, a hum to carry its phase on.
-        ``sample_dt`` (time units per sample) is passed to the built-in effects
-        only; a registered effect is called with the first three arguments.
+        Cross-validation fits on one half of the record and scores on the
+        other, both ways round.  Default: the same values (stationary effects);
+        a drift overrides this to continue its ramp, a hum to carry its phase on.
+        ``sample_dt`` (time units per sample) and ``backward`` (the scored
+        samples come *before* the fitted ones) are passed to the built-in
+        effects only; a registered effect is called with the first three
+        arguments, and one that overrides this method is scored on the forward
+        split alone (fitted on the first half, scored on the second).
         """
         return dict(params)
 

@@ -213,8 +213,9 @@ class PeriodicInterference(Effect):
         g = guess["amplitude"]
         return {"amplitude": (max(g / 3, self.min_amplitude), min(g * 3, 3.0))}
 
-    def transfer(self, params, n_fit, n_score, sample_dt=1.0):
-        """The same hum ``n_fit`` samples later: its phase advances by ``2 pi f n_fit dt``.
+    def transfer(self, params, n_fit, n_score, sample_dt=1.0, backward=False):
+        """The same hum ``n_fit`` samples later: its phase advances by ``2 pi f n_fit dt``
+        (``backward``: ``n_score`` samples earlier, its phase goes back by ``2 pi f n_score dt``).
 
         The phase is irrelevant where a segment holds many cycles, but not for a slow hum:
         a 50 Hz hum at 1 MHz has 1.5 cycles in each half of a 60 ms record, and restarted
@@ -222,7 +223,7 @@ class PeriodicInterference(Effect):
         segment means moved the wrong way; held-out shrink 0.45, in-sample 0.99).
         """
         out = dict(params)
-        advance = 2.0 * np.pi * params["frequency"] * n_fit * sample_dt
+        advance = 2.0 * np.pi * params["frequency"] * (-n_score if backward else n_fit) * sample_dt
         out["phase"] = float(np.mod(params.get("phase", 0.0) + advance, 2.0 * np.pi))
         return out
 
