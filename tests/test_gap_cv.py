@@ -1,9 +1,12 @@
-"""Cross-validated shrink: fit on the first half of the record, score on the second."""
+"""Cross-validated shrink: fit on one half of the record, score on the other, both ways."""
+
+from types import SimpleNamespace
+from typing import ClassVar
 
 import numpy as np
 import pytest
 
-from skdelay.gap import diagnose_gap, get_effect
+from skdelay.gap import Effect, diagnose_gap, get_effect
 from skdelay.gap._diagnose import MIN_SHRINK
 from skdelay.gap._problem import GapProblem
 from skdelay.systems import MackeyGlass
@@ -34,6 +37,10 @@ def test_drift_continues_its_ramp_on_the_held_out_half():
                                                "end": pytest.approx(0.114)}
     const = {"parameter": "b", "start": 0.11, "end": 0.11}
     assert drift.transfer(const, 5000, 5000) == const
+    # carried back over the samples before the fitted ones: the same line, earlier
+    assert drift.transfer(fit, 5000, 2500, backward=True) == {
+        "parameter": "b", "start": pytest.approx(0.0965), "end": 0.1}
+    assert drift.transfer(const, 5000, 5000, backward=True) == const
 
 
 
@@ -49,6 +56,72 @@ def test_a_hum_carries_its_phase_over_to_the_held_out_half(frequency, dt):
     assert moved["frequency"] == frequency and moved["amplitude"] == 0.05
     second = eff.apply(np.zeros(h) + 1.0, moved, sample_dt=dt)
     np.testing.assert_allclose(second, whole[h:], atol=1e-9)
+    # fitted on the second half, carried back to the first: the same sinusoid
+    back = eff.transfer(moved, h, h, sample_dt=dt, backward=True)
+    first = eff.apply(np.zeros(h) + 1.0, back, sample_dt=dt)
+    np.testing.assert_allclose(first, whole[:h], atol=1e-9)
+
+
+class _Level(Effect):
+    """A stationary effect whose fit on a part is that part's ``level`` (test double)."""
+
+    name = "level_shift"
+    bounds: ClassVar[dict] = {"level": (0.0, 10.0)}
+
+    def initial(self, problem):
+        return {"level": problem.level}
+
+    def search(self, problem, guess, objective):
+        return guess
+
+
+class _AnchoredLevel(_Level):
+    name = "anchored_level"
+    anchored_at_start = True
+
+
+class _OwnTransfer(_Level):
+    name = "own_transfer"
+
+    def transfer(self, params, n_fit, n_score):
+        return dict(params)
+
+
+class _Part:
+    """A half of a record whose true level is ``truth``: gap 10 without the effect,
+    10 |level - truth| with it; its clean runs' own gaps have median ``null``."""
+
+    def __init__(self, truth, null):
+        self.level, self.truth, self.n_samples, self.sample_dt = truth, truth, 100, 1.0
+        self.simulator = None
+        self.before = SimpleNamespace(gap=10.0)
+        self.null_gaps = np.array([null])
+
+    def evaluate(self, chain, tier="full"):
+        level = sum(p["level"] for _, p in chain)
+        return SimpleNamespace(gap=10.0 * abs(level - self.truth))
+
+
+def test_cross_validation_pools_both_folds_unless_an_effect_is_anchored():
+    """Each half fits, the other scores, and the held-out gaps are summed; an effect tied to
+    the record's start (a drift), or with a forward-only ``transfer`` of its own, is scored
+    on the forward fold alone."""
+    from joblib import Parallel
+
+    from skdelay.gap._diagnose import cross_validate
+
+    parts = (_Part(1.0, 0.5), _Part(1.2, 0.25))
+    effects = [_Level(), _AnchoredLevel(), _OwnTransfer()]
+    before, scores, null = cross_validate(effects, parts, Parallel(n_jobs=1))
+    assert before == 20.0 and null == 0.75
+    after, params, b, n = scores["level_shift"]
+    # fitted on the first half (1.0) and scored on the second (truth 1.2): 2; and back
+    assert (after, b, n) == (pytest.approx(4.0), 20.0, 0.75)
+    assert params == ({"level": 1.0}, {"level": 1.2})
+    for name in ("anchored_level", "own_transfer"):
+        after, params, b, n = scores[name]
+        assert (after, b, n) == (pytest.approx(2.0), 10.0, 0.25)
+        assert params == ({"level": 1.0}, None)
 
 
 @pytest.fixture(scope="module")
@@ -150,8 +223,6 @@ def test_a_half_fits_a_drift_with_the_whole_ensemble():
 ])
 def test_held_out_share_is_used_only_where_the_half_can_test_the_effect(cv_before, cv_after,
                                                                         shrink, tested):
-    from types import SimpleNamespace
-
     from skdelay.gap._diagnose import _table
 
     eff = get_effect("measurement_noise")

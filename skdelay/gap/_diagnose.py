@@ -536,7 +536,8 @@ def pin_choices(parts, results):
 def _table(results, gap_before, problem, by_name, cv=None):
     """Candidates table, best first.
 
-    With ``cv = (gap_before_heldout, {name: (gap_after_heldout, params)})`` the
+    With ``cv`` from :func:`cross_validate` (each candidate's gaps before and after, and
+    the no-gap level, summed over the held-out halves it was scored on) the
     ``shrink`` and ``gap_after`` columns are the cross-validated ones, capped at the
     in-sample share (``gap_after = gap_before * (1 - shrink)`` on the whole record's
     scale); the in-sample numbers stay as ``gap_after_fit`` /
