@@ -228,6 +228,25 @@ class GapReport:
         return (f", significant although the gap {self.gap_before:.3g} is within the no-gap "
                 f"threshold {s['threshold']:.3g}: {what}")
 
+    def _why_second(self, best, nxt):
+        """Why a runner-up that removes more of the gap than the best ranks second (a clause,
+        empty when it removes less)."""
+        if not nxt["shrink"] > best["shrink"]:
+            return ""
+        if self.tie and self.tie.get("decided") and nxt["effect"] in self.tie["effects"]:
+            return ", more, but fresh noise realisations prefer the best (see below)"
+
+        def checked(row):  # None: no independent check; else whether it agreed
+            flag = row.get("consistent")
+            return None if flag is None or pd.isna(flag) else bool(flag)
+
+        if checked(best) and not checked(nxt):
+            if checked(nxt) is False:
+                return ", more, but its parameters contradict independent evidence in the data"
+            return (", more, but only the best's parameters are confirmed by independent "
+                    "evidence in the data")
+        return ""
+
     def _tie_words(self):
         """A sentence on the tie test (empty when it was not run)."""
         t = self.tie
@@ -350,7 +369,8 @@ class GapReport:
                         "the effect library.")
         if len(ok) > 1:
             nxt = ok.iloc[1]
-            text.append(f"Runner-up: {nxt['effect']} ({100 * nxt['shrink']:.0f}%).")
+            text.append(f"Runner-up: {nxt['effect']} ({100 * nxt['shrink']:.0f}%"
+                        f"{self._why_second(row, nxt)}).")
         if self.tie:
             text.append(self._tie_words())
         if self.combined is not None:
