@@ -102,3 +102,43 @@ def test_consistent_candidate_preferred_within_slack(monkeypatch, second_shrink,
     assert flags["delay_mismatch"] is False and flags["timebase_mismatch"] is True
     assert flags["measurement_noise"] is None  # below MIN_SHRINK: not checked
     assert second_shrink >= 0.99 - _diagnose.CONSISTENT_SLACK or first == "delay_mismatch"
+
+
+@pytest.mark.parametrize(("dip_only", "delay_flag", "delay_shrink", "first"), [
+    (True, True, 0.43, "delay_mismatch"),       # the dip alone is off: its fit leads
+    (False, True, 0.43, "dynamical_noise"),     # other discrepancies too: shares rank
+    (True, False, 0.43, "dynamical_noise"),     # the delay fit misses the record's dip
+    (True, True, 0.25, "dynamical_noise"),      # ... or removes less than MIN_SHRINK
+])
+def test_the_dip_alone_off_puts_a_fit_that_moves_it_first(dip_only, delay_flag, delay_shrink,
+                                                          first):
+    """Where the forecast-error dip is the only significant discrepancy, an effect whose fit
+    moves the model's dip onto the record's (consistent True) leads over effects that remove
+    more of a gap within the no-gap level; otherwise the ranking stands."""
+    table = _table([("dynamical_noise", 0.49), ("measurement_noise", 0.45),
+                    ("delay_mismatch", delay_shrink)]).assign(
+        consistent=[None, None, delay_flag])
+    evals = ["ev_dyn", "ev_meas", "ev_delay"]
+    out, out_evals, moved = _diagnose._dip_evidence_first({"dip_only": dip_only}, table, evals)
+    assert out.iloc[0]["effect"] == first
+    assert moved is (first == "delay_mismatch")
+    assert out_evals[0] == dict(zip(table.effect, evals))[first]
+    assert sorted(out.effect) == sorted(table.effect)
+
+
+def test_a_runner_up_that_removes_more_says_why_it_ranks_second():
+    """The runner-up sentence is conditioned on the shares: "more, but ..." only when the
+    runner-up removes more than the best, with the reason the table holds."""
+    from skdelay.gap._report import GapReport
+
+    rep = GapReport.__new__(GapReport)
+    rep.tie = None
+    best = pd.Series({"effect": "delay_mismatch", "shrink": 0.43, "consistent": True})
+    more = pd.Series({"effect": "dynamical_noise", "shrink": 0.49, "consistent": None})
+    less = pd.Series({"effect": "measurement_noise", "shrink": 0.30, "consistent": None})
+    bad = pd.Series({"effect": "timebase_mismatch", "shrink": 0.60, "consistent": False})
+    assert rep._why_second(best, less) == ""
+    assert "only the best's parameters are confirmed" in rep._why_second(best, more)
+    assert "contradict" in rep._why_second(best, bad)
+    rep.tie = {"decided": True, "effects": ("delay_mismatch", "dynamical_noise")}
+    assert "fresh noise realisations" in rep._why_second(best, more)
