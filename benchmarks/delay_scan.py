@@ -58,13 +58,15 @@ class Usage:
     used; RSS where PSS is not available); CPU time is
     the user + system time spent during the block by this process and by every
     child seen (joblib's loky workers persist between calls, so their times are
-    deltas).
+    deltas).  ``timeline`` holds ``(wall, CPU so far)`` at every sample, from
+    which :meth:`idle_time` reads how long fewer cores than given were busy.
     """
 
     def __init__(self, interval=0.2):
         self.interval = interval
         self.peak = 0
         self._first, self._last = {}, {}
+        self.timeline = []
         self._stop = threading.Event()
 
     @staticmethod
@@ -91,6 +93,7 @@ class Usage:
             self._first.setdefault(proc.pid, cpu)
             self._last[proc.pid] = cpu
         self.peak = max(self.peak, total)
+        self.timeline.append((time.perf_counter(), self.cpu))
 
     def _run(self):
         while not self._stop.wait(self.interval):
@@ -111,13 +114,29 @@ class Usage:
     def cpu(self):
         return sum(self._last[p] - self._first[p] for p in self._last)
 
+    def idle_time(self, n_cores):
+        """Seconds (wall) of the sampling intervals in which fewer than ``n_cores - 0.5``
+        cores were busy on average, and the mean busy cores in them."""
+        low_wall = low_cpu = 0.0
+        for (t0, c0), (t1, c1) in zip(self.timeline, self.timeline[1:]):
+            if t1 > t0 and (c1 - c0) / (t1 - t0) < n_cores - 0.5:
+                low_wall += t1 - t0
+                low_cpu += c1 - c0
+        return low_wall, (low_cpu / low_wall if low_wall else float("nan"))
+
 
 def timed(fn, *args, **kwargs):
+    out, wall, usage = timed_usage(fn, *args, **kwargs)
+    return out, wall, usage.peak / 2**30, usage.cpu
+
+
+def timed_usage(fn, *args, **kwargs):
+    """``(result, wall seconds, Usage)`` of one call."""
     with Usage() as usage:
         t0 = time.perf_counter()
         out = fn(*args, **kwargs)
         wall = time.perf_counter() - t0
-    return out, wall, usage.peak / 2**30, usage.cpu
+    return out, wall, usage
 
 
 # ----------------------------------------------------------------------------- baseline

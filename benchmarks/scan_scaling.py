@@ -20,7 +20,10 @@ table).  CPU time is user + system of this process and all its children
 (loky or Dask workers).  Timings on a shared machine are upper bounds: the
 load average is printed before and after each row.
 
-The parallel efficiency is ``T1 / (n Tn)``.
+The parallel efficiency is ``T1 / (n Tn)``.  The column "wall with < n - 0.5
+cores busy" sums the 0.2 s sampling intervals in which the process tree used
+fewer than ``n - 0.5`` cores on average (and their mean busy cores): the
+part of Tn that did not run in parallel, where it sits.
 
 Run (2 cores)::
 
@@ -39,7 +42,7 @@ import time
 
 import joblib
 import numpy as np
-from delay_scan import series, timed
+from delay_scan import series, timed_usage
 
 from skdelay import forecast_error_curve
 
@@ -65,7 +68,10 @@ def dask_client(n_workers):
     return Client(cluster), None
 
 
-def row(label, n, workers, wall, cpu, t1, ref, fe, ld):
+def row(label, n, workers, wall, usage, t1, ref, fe, ld):
+    cpu = usage.cpu
+    low, busy = usage.idle_time(workers)
+    idle = "-" if workers == 1 else f"{low:.1f} s ({busy:.1f} cores)"
     if t1 is None or workers == 1:
         speed, eff, f = "1", "1", "-"
     else:
@@ -74,7 +80,7 @@ def row(label, n, workers, wall, cpu, t1, ref, fe, ld):
         f = f"{(workers * wall / t1 - 1) / (workers - 1):.3f}"
     diff = float(np.nanmax(np.abs(fe.to_numpy() / ref.to_numpy() - 1)))
     print(f"| {n} | {label} | {workers} | {wall:.1f} s | {cpu:.1f} s | {speed} | {eff} | {f} | "
-          f"{diff:.1e} | {ld} |", flush=True)
+          f"{idle} | {diff:.1e} | {ld} |", flush=True)
 
 
 def main():
@@ -99,8 +105,9 @@ def main():
           f"k = 30; load average at start {load()}")
     print(f"# {os.cpu_count()} CPUs, {len(os.sched_getaffinity(0))} usable by this process")
     print("| N | backend | workers | wall | CPU | T1 / Tn | efficiency T1 / (n Tn) | "
-          "serial fraction f | max abs(sigma / sigma_1 - 1) | load before -> after |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+          "serial fraction f | wall with < n - 0.5 cores busy | max abs(sigma / sigma_1 - 1) | "
+          "load before -> after |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     client, why = (None, "skipped (--no-dask)") if args.no_dask else (None, None)
     try:
         for n in args.n:
@@ -111,9 +118,9 @@ def main():
                 with joblib.parallel_config(backend=args.backend):
                     scan(warm, range(1, 30), workers, 300)  # workers up, kernels loaded
                     ld = load()
-                    fe, wall, _, cpu = timed(scan, s, taus, workers, args.queries)
+                    fe, wall, usage = timed_usage(scan, s, taus, workers, args.queries)
                 results[workers] = (fe, wall)
-                row(args.backend, n, workers, wall, cpu, results[1][1], results[1][0], fe,
+                row(args.backend, n, workers, wall, usage, results[1][1], results[1][0], fe,
                     f"{ld} -> {load()}")
             if args.no_dask or n not in dask_n:
                 continue
@@ -125,8 +132,8 @@ def main():
             with joblib.parallel_config(backend="dask"):
                 scan(warm, range(1, 30), -1, 300)
                 ld = load()
-                fe, wall, _, cpu = timed(scan, s, taus, -1, args.queries)
-            row("dask LocalCluster", n, dask_workers, wall, cpu, results[1][1],
+                fe, wall, usage = timed_usage(scan, s, taus, -1, args.queries)
+            row("dask LocalCluster", n, dask_workers, wall, usage, results[1][1],
                 results[1][0], fe, f"{ld} -> {load()}")
             same = np.array_equal(fe.to_numpy(), results[1][0].to_numpy()) and \
                 np.array_equal(fe.attrs["se"].to_numpy(), results[1][0].attrs["se"].to_numpy())
