@@ -42,6 +42,9 @@ def main(argv=None):
     parser.add_argument("--ridge1", type=float, default=1e-2, help="ridge in stage 1")
     parser.add_argument("--k2", default="50,100,200", help="neighbours tried in stage 2")
     parser.add_argument("--ridge2", default="1e-3,1e-2,1e-1", help="ridges tried in stage 2")
+    parser.add_argument("--horizon", type=int, default=None,
+                        help="samples of the scored free runs (default: the selection's, "
+                             "HORIZON_DELAYS delays)")
     parser.add_argument("--n-jobs", type=int, default=2)
     args = parser.parse_args(argv)
 
@@ -50,13 +53,14 @@ def main(argv=None):
     t0 = time.perf_counter()
     first = select_spectrum_model(s, args.delay, n_neighbors=(args.k1,), ridge=(args.ridge1,),
                                   n_runs=args.runs, n_jobs=args.n_jobs,
-                                  random_state=args.seed)
+                                  horizon=args.horizon, random_state=args.seed)
     t1 = time.perf_counter()
     span = first.m * first.step / first.period  # in dominant periods, as the grid's spans
     second = select_spectrum_model(s, args.delay, steps=(first.step,), spans=(span,),
                                    n_neighbors=tuple(int(k) for k in _floats(args.k2)),
                                    ridge=_floats(args.ridge2), n_runs=args.runs,
-                                   n_jobs=args.n_jobs, random_state=args.seed)
+                                   horizon=args.horizon, n_jobs=args.n_jobs,
+                                   random_state=args.seed)
     t2 = time.perf_counter()
     n_exp = 20 if args.delay < 300 else 45
     spec = spectrum_of_selection(s, second, n_exponents=n_exp, n_steps=40_000 // second.step,

@@ -164,7 +164,10 @@ def forecast_error_curve(series, m=(2, 3, 4, 5), tau=range(1, 101), *, n_neighbo
     refine : bool, default=True
         With ``n_queries``: recompute the taus around each dip with 4x more
         queries per round (up to all) until every dip centre's standard error
-        is below 0.2 samples.  False keeps the coarse pass (full precision:
+        is below 0.2 samples; then, under ``search="auto"``, recompute the taus
+        around each significant dip that the candidate lists approximated with
+        the exact tree search (same queries), so that a dip is read off exact
+        neighbourhoods.  False keeps the coarse pass (full precision:
         ``n_queries=None``).
     progress : bool, default=False
         Show a tqdm progress bar (with ETA) over the scan's tasks.
@@ -182,9 +185,9 @@ def forecast_error_curve(series, m=(2, 3, 4, 5), tau=range(1, 101), *, n_neighbo
         (standard errors of the cells, same shape), ``coarse`` (bool, cells
         left at the coarse query subset), ``queries`` (queries per cell),
         ``n_queries`` (coarse queries per ``m``), ``segment_length`` (per
-        ``m``), ``theiler_window``, ``radius`` and ``exact_fraction``
-        (fraction of queries whose neighbours are provably the exact k-NN,
-        per ``m``, mean over ``tau``).
+        ``m``), ``theiler_window``, ``radius``, ``exact`` (fraction of the
+        queries of each cell whose neighbours are provably the exact k-NN,
+        same shape) and ``exact_fraction`` (its mean over ``tau``, per ``m``).
 
     Raises
     ------
@@ -233,7 +236,7 @@ def forecast_error_curve(series, m=(2, 3, 4, 5), tau=range(1, 101), *, n_neighbo
     out = _frame(err / z_std, ms, taus)
     out.attrs.update(
         se=_frame(se / z_std, ms, taus), coarse=_frame(res.coarse, ms, taus),
-        queries=_frame(res.n_queries[0], ms, taus),
+        queries=_frame(res.n_queries[0], ms, taus), exact=_frame(res.exact[0], ms, taus),
         n_queries={int(mm): int(res.n_queries[0, j].min()) for j, mm in enumerate(ms)},
         segment_length=res.segment_length, theiler_window=w,
         radius=None if res.radius is None else float(res.radius) * scale,

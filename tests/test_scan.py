@@ -202,8 +202,34 @@ def test_refinement_adds_queries_at_the_dip_only(mg30):
     assert np.all(np.abs(dips["delay"] - 30) < 1.0)
     flat = forecast_error_curve(mg30, refine=False, **kw)
     assert flat.attrs["coarse"].all().all() and (flat.attrs["queries"] == 150).all().all()
-    # the coarse cells are the same computation in both runs
-    np.testing.assert_allclose(flat[coarse], fe[coarse], rtol=1e-12)
+    # the coarse cells are the same computation in both runs, except those around the dip
+    # that the refinement recomputed with exact neighbours (same queries)
+    polished = coarse & (fe.attrs["exact"] == 1) & (flat.attrs["exact"] < 1)
+    same = coarse & ~polished
+    assert same.to_numpy().sum() > 20
+    np.testing.assert_allclose(flat[same], fe[same], rtol=1e-12)
+
+
+def test_the_dip_is_read_off_exact_neighbourhoods():
+    # 500 queries on ~3*10^4 rows: the coarse pass uses the candidate lists, which are
+    # approximate (exact fraction < 1); the refinement gives the dip's cells the tree
+    # search with their own queries, so there the curve is the tree search's, bit for bit
+    s = measured_mackey_glass(30_000, 40, noise=0.01, bits=12, seed=1)
+    kw = {"m": (2, 4), "tau": range(20, 61), "n_queries": 500, "random_state": 0}
+    auto = forecast_error_curve(s, **kw)
+    tree = forecast_error_curve(s, search="tree", refine=False, **kw)
+    lists = forecast_error_curve(s, search="candidates", refine=False, **kw)
+    exact, queries = auto.attrs["exact"], auto.attrs["queries"]
+    dips = locate_dips(auto, se=auto.attrs["se"])
+    for m in (2, 4):
+        assert dips.loc[m, "significant"] and abs(dips.loc[m, "delay"] - 40) < 1
+        near = np.abs(auto.index - dips.loc[m, "delay"]) <= 2 * dips.loc[m, "half_width"]
+        assert np.all(exact.loc[near, m] == 1)  # every cell of the dip run: exact
+        assert np.all(exact.loc[~near, m].to_numpy()[:5] < 1)  # far away: still the lists
+        at_coarse = near & (queries[m] == 500).to_numpy()
+        np.testing.assert_array_equal(auto.loc[at_coarse, m], tree.loc[at_coarse, m])
+        # ... and the lists alone would have given another curve there
+        assert np.abs(lists.loc[near, m] / tree.loc[near, m] - 1).max() > 1e-4
 
 
 def test_progress_bar_and_shared_arrays(mg30, capsys, monkeypatch):
