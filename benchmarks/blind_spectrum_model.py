@@ -8,7 +8,8 @@ the embedded data's, through the same acquisition chain (12-bit ADC, 0.5 %
 measurement and 0.3 % dynamical noise), chooses the spectrum model from the
 series alone (:func:`skdelay.model_selection.select_spectrum_model`: model step
 2-4 samples, windows spanning 1-1.5 dominant periods, k 50/150, ridge
-1e-3/1e-2, scored by cross-validated free runs over four delays), computes its
+1e-3/1e-2 by default, see ``--help``; scored by cross-validated free runs over four
+delays unless ``--horizon`` says otherwise), computes its
 spectrum and prints it beside the shipped exact one with ok/MISS against the
 tolerances of issue 12.  The delay is the simulator's (the delay scan finds it
 within a sample; see ``benchmarks/blind_laser.py`` for the full CLI pipeline).
@@ -34,6 +35,7 @@ from skdelay.model_selection import (
     SpectrumModelSelection,
     dominant_period,
     select_spectrum_model,
+    select_spectrum_model_staged,
     spectrum_of_selection,
 )
 from skdelay.systems import measure
@@ -49,6 +51,16 @@ def main(argv=None):
     parser.add_argument("--n-samples", type=int, default=100_000)
     parser.add_argument("--n-exponents", type=int, default=20)
     parser.add_argument("--runs", type=int, default=60)
+    parser.add_argument("--horizon", type=int, default=None,
+                        help="samples of the scored free runs (default: the selection's)")
+    parser.add_argument("--steps", default="2,3,4", help="model steps tried")
+    parser.add_argument("--spans", default="1.0,1.25,1.5",
+                        help="window spans tried (dominant periods)")
+    parser.add_argument("--k", default="50,150", help="neighbourhood sizes tried")
+    parser.add_argument("--ridge", default="1e-3,1e-2", help="relative ridges tried")
+    parser.add_argument("--staged", action="store_true",
+                        help="select_spectrum_model_staged with its default grids (the "
+                             "demo's choice) instead of --steps/--spans/--k/--ridge")
     parser.add_argument("--out", default=None)
     parser.add_argument("--fixed", default=None, metavar="STEP,M,K,RIDGE",
                         help="skip the cross-validation and use this setting (a rule to be "
@@ -68,10 +80,17 @@ def main(argv=None):
                 step=int(step), m=int(m), tau=round(args.delay / int(step)),
                 options=ModelOptions(n_neighbors=int(k), ridge=float(ridge)), horizon=0,
                 period=dominant_period(s, 2 * args.delay), table=None)
+        elif args.staged:
+            sel = select_spectrum_model_staged(s, args.delay, n_runs=args.runs,
+                                               horizon=args.horizon, random_state=args.seed)
         else:
-            sel = select_spectrum_model(s, args.delay, n_runs=args.runs, steps=(2, 3, 4),
-                                        spans=(1.0, 1.25, 1.5), n_neighbors=(50, 150),
-                                        ridge=(1e-3, 1e-2), random_state=args.seed)
+            sel = select_spectrum_model(
+                s, args.delay, n_runs=args.runs,
+                steps=tuple(int(v) for v in args.steps.split(",")),
+                spans=tuple(float(v) for v in args.spans.split(",")),
+                n_neighbors=tuple(int(v) for v in args.k.split(",")),
+                ridge=tuple(float(v) for v in args.ridge.split(",")), horizon=args.horizon,
+                random_state=args.seed)
         t1 = time.perf_counter()
         spec = spectrum_of_selection(s, sel, flow=True, n_exponents=args.n_exponents,
                                      n_jobs=1)

@@ -1,19 +1,20 @@
 """Staged choice of the spectrum model on the embedded laser data, and its spectrum.
 
-Run: ``python benchmarks/spectrum_staged.py --delay 50 --runs 40 --seed 0`` (about 30 s
+Run: ``python benchmarks/spectrum_staged.py --delay 50 --runs 40 --seed 0`` (15-100 s
 per delay with 40 runs on 2 cores).
 
 :func:`skdelay.model_selection.select_spectrum_model` scores every setting of its grid
 (model step x window span x neighbours x ridge) by cross-validated free runs; on the
 full grid that took 8-30 minutes per delay (``benchmarks/out/spectrum_settings.txt``).
-This script asks whether two cheaper stages choose as well:
+:func:`skdelay.model_selection.select_spectrum_model_staged` makes the choice in two
+cheaper stages, and this script prints them:
 
 1. model step and window span, at one neighbourhood size and ridge (``--k1``,
    ``--ridge1``);
 2. neighbours and ridge (``--k2`` x ``--ridge2``) at the chosen step and span.
 
 It prints both stages' tables (``error``: the cross-validated RMS error of the free
-runs, in standard deviations), the time of each, and the chosen model's spectrum
+runs, in standard deviations), the selection's time, and the chosen model's spectrum
 beside the shipped exact one (per ms).  The exact spectrum is only printed: nothing
 here is chosen against it.
 """
@@ -26,7 +27,7 @@ import time
 import numpy as np
 
 from skdelay.datasets import laser_exact_spectrum, load_laser
-from skdelay.model_selection import select_spectrum_model, spectrum_of_selection
+from skdelay.model_selection import select_spectrum_model_staged, spectrum_of_selection
 
 
 def _floats(text):
@@ -51,30 +52,25 @@ def main(argv=None):
     data = load_laser(delay=args.delay, n_samples=100_000)
     s = np.asarray(data.series, dtype=float)
     t0 = time.perf_counter()
-    first = select_spectrum_model(s, args.delay, n_neighbors=(args.k1,), ridge=(args.ridge1,),
-                                  n_runs=args.runs, n_jobs=args.n_jobs,
-                                  horizon=args.horizon, random_state=args.seed)
-    t1 = time.perf_counter()
-    span = first.m * first.step / first.period  # in dominant periods, as the grid's spans
-    second = select_spectrum_model(s, args.delay, steps=(first.step,), spans=(span,),
-                                   n_neighbors=tuple(int(k) for k in _floats(args.k2)),
-                                   ridge=_floats(args.ridge2), n_runs=args.runs,
-                                   horizon=args.horizon, n_jobs=args.n_jobs,
-                                   random_state=args.seed)
+    sel = select_spectrum_model_staged(
+        s, args.delay, n_neighbors=tuple(int(k) for k in _floats(args.k2)),
+        ridge=_floats(args.ridge2), first=(args.k1, args.ridge1), horizon=args.horizon,
+        n_runs=args.runs, random_state=args.seed, n_jobs=args.n_jobs)
     t2 = time.perf_counter()
     n_exp = 20 if args.delay < 300 else 45
-    spec = spectrum_of_selection(s, second, n_exponents=n_exp, n_steps=40_000 // second.step,
+    spec = spectrum_of_selection(s, sel, n_exponents=n_exp, n_steps=40_000 // sel.step,
                                  sample_dt=float(data.sample_dt), flow=True,
                                  n_jobs=args.n_jobs)
     exact = laser_exact_spectrum(args.delay)
     cols = ["step", "m", "span", "n_neighbors", "ridge", "error", "chosen"]
     print(f"tau0 = {args.delay} us, {s.size} samples, {args.runs} runs per fold, seed "
-          f"{args.seed}; dominant period {first.period} samples")
-    print(f"stage 1 ({t1 - t0:.0f} s):")
-    print(first.table.sort_values("error")[cols].to_string(index=False))
-    print(f"stage 2 ({t2 - t1:.0f} s):")
-    print(second.table.sort_values("error")[cols].to_string(index=False))
-    print("chosen:", second.describe())
+          f"{args.seed}; dominant period {sel.period} samples")
+    for stage in (1, 2):
+        print(f"stage {stage}:")
+        print(sel.table[sel.table.stage == stage].sort_values("error")[cols]
+              .to_string(index=False))
+    print(f"selection: {t2 - t0:.0f} s")
+    print("chosen:", sel.describe())
     rows = [("model", spec)] + ([("exact", exact)] if exact is not None else [])
     for name, sp in rows:
         print(f"{name:>5}: N+ {sp.n_positive:3d}  lambda_max {1e3 * sp.exponents[0]:6.2f}  "

@@ -9,7 +9,9 @@
 * :func:`select_spectrum_model` -- model step, window span, neighbours and
   ridge of the model behind a Lyapunov spectrum, by time-series
   cross-validation of free runs (:func:`spectrum_of_selection` fits it and
-  returns its spectrum; :func:`dominant_period` sets the span grid).
+  returns its spectrum; :func:`dominant_period` sets the span grid);
+  :func:`select_spectrum_model_staged` makes the same choice in two cheaper
+  stages (time scale, then neighbours and ridge).
 """
 
 from __future__ import annotations
@@ -21,10 +23,11 @@ from ._model_selection import (
     dominant_period,
     select_model_options,
     select_spectrum_model,
+    select_spectrum_model_staged,
     spectrum_of_selection,
 )
 from ._sampling import sampling_step
 
 __all__ = ["ModelOptions", "ModelSelection", "SpectrumModelSelection", "dominant_period",
            "sampling_step", "select_model_options", "select_spectrum_model",
-           "spectrum_of_selection"]
+           "select_spectrum_model_staged", "spectrum_of_selection"]

@@ -63,3 +63,40 @@ def test_too_short_a_series_for_the_horizon_is_refused():
     with pytest.raises(ValueError, match="too short"):
         select_spectrum_model(x, 17, steps=(1,), spans=(0.2,), n_neighbors=(10,),
                               ridge=(1e-3,), horizon=400)
+
+
+def test_the_staged_selection_fits_neighbours_and_ridge_at_the_first_stage_time_scale(mg):
+    from skdelay.model_selection import select_spectrum_model_staged
+
+    sel = select_spectrum_model_staged(mg, 17, steps=(1, 2), spans=(0.1, 0.2),
+                                       n_neighbors=(15, 40), ridge=(1e-3, 1e-1),
+                                       first=(15, 1e-3), horizon=20, n_runs=15,
+                                       random_state=0)
+    one, two = sel.table[sel.table.stage == 1], sel.table[sel.table.stage == 2]
+    assert len(one) == 4 and len(two) == 4 and int(sel.table["chosen"].sum()) == 1
+    # stage 2 runs at the step and window of stage 1's best row
+    best1 = one.loc[one["error"].idxmin()]
+    assert set(two["step"]) == {best1["step"]} and set(two["m"]) == {best1["m"]}
+    # the chosen setting is stage 2's best, with a standard error from the folds
+    chosen = sel.table[sel.table["chosen"]].iloc[0]
+    assert chosen["stage"] == 2 and chosen["error"] == two["error"].min()
+    assert (sel.step, sel.m, sel.options.n_neighbors, sel.options.ridge) == (
+        chosen["step"], chosen["m"], chosen["n_neighbors"], chosen["ridge"])
+    assert np.all(sel.table["error_se"] > 0)
+
+
+def test_the_demo_spectrum_ranges_over_the_settings_the_data_cannot_tell_apart(mg):
+    from skdelay._demo import spectrum_model
+
+    sel, spec, ranges = spectrum_model(mg, 17, sample_dt=1.0, n_steps=3000, random_state=0)
+    two = sel.table[sel.table.stage == 2]
+    best = two.loc[two["error"].idxmin()]
+    alike = two[two["error"] <= best["error"] + best["error_se"]]
+    for key, value in (("lambda_max", spec.exponents[0]), ("D_KY", spec.kaplan_yorke_dimension),
+                       ("N", spec.n_positive)):
+        lo, hi = ranges[key]
+        assert lo <= value <= hi
+    if len(alike) > 1:  # other settings as good as the best: their spectra differ
+        assert ranges["lambda_max"][1] > ranges["lambda_max"][0]
+    else:
+        assert ranges["lambda_max"][0] == ranges["lambda_max"][1] == spec.exponents[0]
