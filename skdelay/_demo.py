@@ -252,10 +252,12 @@ def cross_prediction_table(results):
 #: state between the laser's pulses (``benchmarks/out/spectrum_settings.txt``).  The
 #: table's spectrum comes from the cross-validated spectrum model instead (run_demo).
 DEMO_MODEL = ModelOptions(n_neighbors=100, ridge=3e-2)
-#: Free runs scored per test fold by the demo's spectrum-model selection (40 choose the
-#: same model as 100 at 50 us on the embedded data, in half the time:
-#: ``benchmarks/out/spectrum_staged.txt``).
-SPECTRUM_RUNS = 40
+#: Free runs scored per test fold by the demo's spectrum-model selection.  More runs do
+#: not make the choice among the second stage's settings stable (their errors lie within
+#: one standard error of each other, which the table's range columns show), and the
+#: selection's time is proportional: with 40 runs it took 29 / 42 / 173 s at 50 / 150 /
+#: 400 us on one core, most of the demo's time.
+SPECTRUM_RUNS = 20
 #: Exponents of the spectrum model: this many first, and up to
 #: :data:`MAX_SPECTRUM_EXPONENTS` when the Kaplan-Yorke sum does not close within them.
 SPECTRUM_EXPONENTS = 20
@@ -272,7 +274,8 @@ def _spectrum_quantities(spec):
             "D_KY": float(spec.kaplan_yorke_dimension), "h_KS": float(spec.ks_entropy)}
 
 
-def spectrum_model(series, delay, *, sample_dt, n_steps, random_state=0, n_jobs=None):
+def spectrum_model(series, delay, *, sample_dt, n_steps, random_state=0, n_jobs=None,
+                   progress=None):
     """The cross-validated spectrum model of one record, its spectrum and their range.
 
     ``delay`` in samples (the delay scan's estimate).  Returns ``(selection,
@@ -288,8 +291,10 @@ def spectrum_model(series, delay, *, sample_dt, n_steps, random_state=0, n_jobs=
     """
     from dataclasses import replace
 
+    say = progress or (lambda _msg: None)
     sel = select_spectrum_model_staged(series, max(1, round(float(delay))), n_runs=SPECTRUM_RUNS,
-                                       random_state=random_state, n_jobs=n_jobs)
+                                       random_state=random_state, n_jobs=n_jobs,
+                                       progress=say)
 
     def spectrum_of(selection, n_exp, steps):
         return spectrum_of_selection(series, selection, n_exponents=n_exp,
@@ -309,6 +314,9 @@ def spectrum_model(series, delay, *, sample_dt, n_steps, random_state=0, n_jobs=
     stage2 = sel.table[sel.table["stage"] == 2]
     best = stage2.loc[stage2["error"].idxmin()]
     alike = stage2[(stage2["error"] <= best["error"] + best["error_se"]) & ~stage2["chosen"]]
+    if len(alike):
+        say(f"spectrum model: {len(alike)} more setting(s) within one standard error of the "
+            "best, their spectra for the range")
     for _, row in alike.iterrows():
         other = replace(sel, options=replace(sel.options, n_neighbors=int(row["n_neighbors"]),
                                              ridge=float(row["ridge"])))
@@ -387,7 +395,9 @@ def run_demo(*, delays=(50, 150, 400), n_samples=None, exact=True, n_exact=20,
             sel, spec, ranges = spectrum_model(data.series, row["delay"],
                                                sample_dt=float(data.sample_dt),
                                                n_steps=options.n_spectrum_steps,
-                                               random_state=random_state, n_jobs=n_jobs)
+                                               random_state=random_state, n_jobs=n_jobs,
+                                               progress=lambda msg, _d=delay:
+                                               say(f"tau0 = {_d}: {msg}"))
             tau_time = sel.tau * sel.step * float(data.sample_dt)
             chosen[delay] = (sel, spec, tau_time, ranges)
             d_ky = float(spec.kaplan_yorke_dimension)

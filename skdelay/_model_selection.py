@@ -444,7 +444,7 @@ def spectrum_of_selection(series, selection, *, n_exponents=20, n_steps=None, sa
 def select_spectrum_model_staged(series, delay, *, steps=STEP_GRID, spans=SPAN_GRID,
                                  n_neighbors=NEIGHBOUR_GRID, ridge=STAGED_RIDGE_GRID,
                                  first=STAGE1_MODEL, horizon=None, n_runs=N_RUNS_SCORED,
-                                 random_state=0, n_jobs=None):
+                                 random_state=0, n_jobs=None, progress=None):
     """:func:`select_spectrum_model` in two stages: the time scale, then the fit.
 
     Stage 1 scores every model step and window span at one neighbourhood
@@ -461,6 +461,8 @@ def select_spectrum_model_staged(series, delay, *, steps=STEP_GRID, spans=SPAN_G
         :data:`STAGED_RIDGE_GRID`).
     first : (int, float)
         Neighbours and ridge of stage 1.
+    progress : callable, default=None
+        Called with a one-line message before each stage.
 
     Returns
     -------
@@ -478,11 +480,16 @@ def select_spectrum_model_staged(series, delay, *, steps=STEP_GRID, spans=SPAN_G
     >>> sel.step in (1, 2), sel.options.n_neighbors in (20, 40), sorted(set(sel.table.stage))
     (True, True, [1, 2])
     """
+    say = progress or (lambda _msg: None)
     k1, r1 = first
+    say(f"spectrum model, stage 1 of 2: model step and window span (k = {k1}, ridge {r1:g}), "
+        f"{n_runs} free runs per fold and setting")
     one = select_spectrum_model(series, delay, steps=steps, spans=spans, n_neighbors=(k1,),
                                 ridge=(r1,), horizon=horizon, n_runs=n_runs,
                                 random_state=random_state, n_jobs=n_jobs)
     unit = one.period if one.period is not None else max(1, int(delay) // 2)
+    say(f"spectrum model, stage 2 of 2: neighbours and ridge at step {one.step}, window "
+        f"m = {one.m}")
     two = select_spectrum_model(series, delay, steps=(one.step,),
                                 spans=(one.m * one.step / unit,), n_neighbors=n_neighbors,
                                 ridge=ridge, horizon=horizon, n_runs=n_runs,
