@@ -470,7 +470,6 @@ def select_spectrum_model_staged(series, delay, *, steps=STEP_GRID, spans=SPAN_G
 
     Examples
     --------
-    >>> import numpy as np
     >>> from skdelay.model_selection import select_spectrum_model_staged
     >>> from skdelay.systems import MackeyGlass
     >>> s = MackeyGlass(tau=17.0).simulate(4000, random_state=0)
@@ -481,7 +480,11 @@ def select_spectrum_model_staged(series, delay, *, steps=STEP_GRID, spans=SPAN_G
     (True, True, [1, 2])
     """
     say = progress or (lambda _msg: None)
-    k1, r1 = first
+    try:
+        k1, r1 = first
+    except (TypeError, ValueError):
+        raise ValueError(f"first must be (n_neighbors, ridge) of stage 1, e.g. (100, 0.01); "
+                         f"got {first!r}.") from None
     say(f"spectrum model, stage 1 of 2: model step and window span (k = {k1}, ridge {r1:g}), "
         f"{n_runs} free runs per fold and setting")
     one = select_spectrum_model(series, delay, steps=steps, spans=spans, n_neighbors=(k1,),

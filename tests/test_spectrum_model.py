@@ -83,6 +83,8 @@ def test_the_staged_selection_fits_neighbours_and_ridge_at_the_first_stage_time_
     assert (sel.step, sel.m, sel.options.n_neighbors, sel.options.ridge) == (
         chosen["step"], chosen["m"], chosen["n_neighbors"], chosen["ridge"])
     assert np.all(sel.table["error_se"] > 0)
+    with pytest.raises(ValueError, match=r"first must be \(n_neighbors, ridge\) of stage 1"):
+        select_spectrum_model_staged(mg, 17, first=100)
 
 
 def test_the_demo_spectrum_ranges_over_the_settings_the_data_cannot_tell_apart(mg):
