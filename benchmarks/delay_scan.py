@@ -18,6 +18,10 @@ query.  Three scans, timed in the same run with the same ``--n-jobs``:
   ``--queries`` random queries and refinement at the dips (every point a
   query there, until the dip centre's standard error is below 0.2 samples).
 
+(c) ``--part c``: the coarse pass alone (``refine=False``) with the tree search,
+the candidate lists and ``search="auto"``, at several record lengths and query
+counts: the cost model behind the automatic choice.
+
 (b) ``--part b``: the paper-scale run, 10^6 points (delay 150), m = 2..5, tau =
 1..500, coarse 10^4 queries, refined at the dip: wall time, CPU time and peak
 memory (PSS of the main process plus its joblib workers, sampled every 0.2 s).
@@ -28,6 +32,7 @@ Run (2 cores)::
 
     nice -n 10 python benchmarks/delay_scan.py --part a --n-jobs 2
     nice -n 10 python benchmarks/delay_scan.py --part b --n-jobs 2
+    nice -n 10 python benchmarks/delay_scan.py --part c --n-jobs 1
 """
 
 from __future__ import annotations
@@ -257,6 +262,40 @@ def part_a(args):
           .round(3).to_string())
 
 
+def part_c(args):
+    """The coarse pass under each search, and the choice of ``search="auto"``."""
+    ms, taus = (2, 3, 4, 5), np.arange(1, args.c_taus + 1)
+    cases = [tuple(int(float(v)) for v in c.split(":")) for c in args.c_cases]
+    warm = series(4000, 20)  # load the compiled kernels
+    for search in ("tree", "candidates"):
+        forecast_error_curve(warm, m=ms, tau=range(1, 30), n_queries=300, search=search,
+                             n_jobs=args.n_jobs)
+    print(f"# (c) load average before: {load()}", flush=True)
+    print(f"(c) coarse pass only (refine=False): Mackey-Glass delay 100, 0.5 % noise, 12 bits; "
+          f"m = 2..5, tau = 1..{taus[-1]}, k = {K}, n_jobs = {args.n_jobs}.")
+    print("| rows | queries | rows per query | tree | candidates | auto | auto chose | "
+          "auto / faster of the two |")
+    print("|---|---|---|---|---|---|---|---|")
+    series_of = {}
+    for n, q in cases:
+        if n not in series_of:
+            series_of[n] = series(n, 100)
+        s = series_of[n]
+        wall, chose = {}, ""
+        for search in ("tree", "candidates", "auto"):
+            curve, wall[search], _, _ = timed(forecast_error_curve, s, m=ms, tau=taus,
+                                             n_queries=q, search=search, refine=False,
+                                             n_neighbors=K, ridge=RIDGE, random_state=0,
+                                             n_jobs=args.n_jobs)
+            if search == "auto":  # the tree search is exact in every cell, the lists rarely
+                exact = curve.attrs["exact"].to_numpy()
+                chose = "tree" if bool((exact == 1).all()) else "candidates"
+        best = min(wall["tree"], wall["candidates"])
+        print(f"| {n} | {q} | {n / q:.0f} | {wall['tree']:.1f} s | {wall['candidates']:.1f} s | "
+              f"{wall['auto']:.1f} s | {chose} | {wall['auto'] / best:.2f} |", flush=True)
+    print(f"# load average after: {load()}")
+
+
 def _summary(values):
     if values.size == 0:
         return "none"
@@ -331,7 +370,7 @@ def check_dip(args, s, fe, dips):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--part", choices=["a", "b"], default="a")
+    parser.add_argument("--part", choices=["a", "b", "c"], default="a")
     parser.add_argument("--n-a", type=int, default=100_000)
     parser.add_argument("--n-b", type=int, default=1_000_000)
     parser.add_argument("--queries", type=int, default=10_000)
@@ -343,8 +382,13 @@ def main():
                         help="(b) m values checked against a full-precision dip scan")
     parser.add_argument("--check-reach", type=int, default=10,
                         help="(b) the check scans tau = 150 +- this")
+    parser.add_argument("--c-cases", nargs="*", metavar="ROWS:QUERIES",
+                        default=["30000:500", "30000:2000", "100000:1000", "100000:4000",
+                                 "100000:10000"],
+                        help="(c) record lengths and coarse queries per cell")
+    parser.add_argument("--c-taus", type=int, default=200, help="(c) scan tau = 1..this")
     args = parser.parse_args()
-    (part_a if args.part == "a" else part_b)(args)
+    {"a": part_a, "b": part_b, "c": part_c}[args.part](args)
 
 
 if __name__ == "__main__":

@@ -49,11 +49,14 @@ Neighbour search (``ScanOptions.search``):
   propagated neighbours) halved the time but moved sigma by up to 2.6-7 %, and
   after two leaves (about half the time) by up to 0.8-1.7 % per m: neighbours
   enter a moving neighbourhood faster than propagation finds them.
-* ``"auto"`` (default) -- ``"tree"`` for the cells whose database has at most
-  :data:`TREE_RATIO` rows per query (every query of a full-precision scan and
-  of refined cells), ``"candidates"`` for the others (a coarse pass with few
-  queries on a long record, where one tree per tau would cost more than the
-  queries) and for radius neighbourhoods.
+* ``"auto"`` (default) -- whichever of ``"tree"`` and ``"candidates"`` a
+  measured cost model (:func:`_use_tree`) expects to be faster for the cell,
+  the approximate lists only where they halve the cost: the tree for every
+  query of a full-precision scan, for refined cells and for most coarse
+  passes; the candidate lists for a coarse pass with few queries on a long
+  record (10^4 on 10^6 rows, fewer than about 300 on 10^5 rows and 200 taus),
+  where one tree per tau would cost far more than the queries; and the lists
+  for radius neighbourhoods.
 * ``"exact"`` -- a plain k-d tree on the 2m-dimensional vectors, rebuilt for
   every ``(m, tau)`` (the reference).
 
@@ -173,14 +176,31 @@ TREE_COMPONENTS = 2
 #: Leaf size of the per-tau trees (16 and 32 points per leaf: the same work within 10 %
 #: on the case above, 8: 20 % more).
 TREE_LEAF_SIZE = 16
-#: ``search="auto"`` uses the exact tree search for a cell when its database has at most
-#: this many rows per query, the candidate lists otherwise.  Measured on a quiet 2-core
-#: machine (10^5 noisy 12-bit Mackey-Glass points, m = 2..5, tau = 1..200, k = 30, 10^4
-#: coarse queries per cell, ``benchmarks/delay_scan.py --part a``): 234 s of CPU with the
-#: trees (every neighbourhood exact) against 210 s with the lists (3-7 % provably exact,
-#: sigma up to 3.5 % off) -- exactness for 11 % more.  With fewer queries per row the
-#: build of one tree per tau dominates (10^4 queries on 10^6 rows: the lists).
-TREE_RATIO = 10
+#: ``search="auto"`` costs for one ``(m, chunk of taus)`` cell (:func:`_use_tree`),
+#: in microseconds of one core.  Fitted on a quiet 2-core machine to coarse passes of noisy
+#: 12-bit Mackey-Glass (delay 100, m = 2..5, tau = 1..200, k = 30, one worker,
+#: ``refine=False``) at 3*10^4 rows (500 and 2000 queries) and 10^5 rows (1000, 4000 and
+#: 10^4 queries), ``python benchmarks/delay_scan.py --part c``:
+#:
+#: * the tree search builds one tree per tau, ``TREE_BUILD * n log2 n`` (0.014-0.016 us),
+#:   and searches and fits each query, ``TREE_QUERY`` (4.9 us at 3*10^4 rows, 7.1 at 10^5);
+#: * the candidate lists cost ``LIST_ROW`` per needed time and candidate (36-38 us per
+#:   time with 240 candidates) and their re-ranking ``LIST_QUERY`` per query and candidate,
+#:   plus one fit (8.8-9.4 us per query with 240 candidates).
+#:
+#: The old rule (the lists above 10 database rows per query) took the lists for all but
+#: the last of these five passes, although the tree was faster in four of them (by 12 %,
+#: 30 %, 7 % and 15 %; the lists by 13 % at 10^5 rows and 1000 queries) and is exact.
+TREE_BUILD, TREE_QUERY = 0.015, 6.0
+LIST_ROW, LIST_QUERY, FIT_QUERY = 0.15, 0.033, 1.2
+#: The lists are approximate (sigma up to 3.5 % off at 10^5 rows; 2.7 % median, 5.9 % at
+#: most, near the dip of 10^6 rows with their 67 candidates), so ``"auto"`` takes them only
+#: where the model expects them to cost less than half the trees: the paper-scale coarse pass (10^6 rows, 10^4 queries, 500
+#: taus: 6.7x by the model; the lists' 146 s of CPU there were measured), not a
+#: full-precision scan of the dip region of the same record (1.6x: without this factor the
+#: benchmark's exact reference itself ran on the lists, 2.9 % median from the exact
+#: neighbourhoods of the default scan's dip) nor the 13 % of 10^5 rows and 1000 queries.
+LIST_ADVANTAGE = 2.0
 
 _MODES = {"none": "none", "segment": "segment", "radius": "radius"}
 
@@ -1088,8 +1108,8 @@ def scan_series(s, ms, taus, splits, options, *, random_state=None, n_jobs=None,
         if search == "exact":
             tasks = [delayed(_exact_task)(s, m, taus[c], db_m, q_t, o, n_b) for c in chunks]
             return _Cell(cell, q_t, chunks, [], lambda _: (tasks, ()))
-        if search == "tree" or (search == "auto" and rad is None
-                                and db_m.size <= TREE_RATIO * q_t.size):
+        if search == "tree" or (search == "auto" and rad is None and _use_tree(
+                m, db_m, q_t, taus[idx], opt)):
             key = (split, m)
             if key not in components:
                 components[key] = shared(window_components(
@@ -1327,6 +1347,28 @@ class _CandidatePlan:
     row_of: np.ndarray
     u_min: int
     is_db: np.ndarray
+
+
+def _use_tree(m, db_t, q_t, taus, opt):
+    """Whether ``search="auto"`` takes the exact tree search for one cell.
+
+    Always where every database row is a query (a full-precision cell); elsewhere unless
+    the candidate lists are expected to cost less than ``1 / LIST_ADVANTAGE`` of it.  Cost
+    model of :data:`TREE_BUILD` and its neighbours (microseconds): the tree search builds a
+    tree of the ``db_t.size`` rows per tau and searches each query; the lists are built once
+    for the needed times (the queries and their second windows' starts, at most the rows
+    they span) and re-rank ``K`` candidates per query and tau.
+    """
+    n_db, n_q, n_tau = int(db_t.size), int(q_t.size), len(taus)
+    if n_q >= n_db:
+        return True
+    starts = {second_window_start(m, int(t)) for t in taus}
+    span = int(q_t.max()) - int(q_t.min()) + max(starts) + 1
+    n_needed = min(span, n_q * (len(starts) + 1))
+    k = opt.candidates_for(n_needed)
+    tree = n_tau * (TREE_BUILD * n_db * np.log2(max(n_db, 2)) + TREE_QUERY * n_q)
+    lists = LIST_ROW * k * n_needed + n_tau * n_q * (LIST_QUERY * k + FIT_QUERY)
+    return bool(tree <= LIST_ADVANTAGE * lists)
 
 
 def _candidate_plan(s, m, db_t, q_t, starts, opt):

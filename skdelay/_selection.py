@@ -153,10 +153,13 @@ def forecast_error_curve(series, m=(2, 3, 4, 5), tau=range(1, 101), *, n_neighbo
         both windows, refined by the full distance; "candidates" re-ranks fixed
         candidate lists built once per ``m`` (approximate: it can miss true
         neighbours, ``attrs["exact_fraction"]`` says how often it is provably
-        exact); "auto" uses "tree" wherever a cell has at least one query per
-        ten database rows (every cell of a full-precision scan, refined
-        cells) and "candidates" elsewhere (a coarse pass with few queries); "exact" rebuilds a plain k-d tree
-        on the 2m-dimensional vectors per ``(m, tau)`` (the reference).
+        exact); "auto" uses "tree" unless a measured cost model expects the
+        lists to cost less than half of it: "tree" for every cell of a
+        full-precision scan, for refined cells and most coarse passes,
+        "candidates" for a coarse pass with few queries on a long record
+        (10^4 queries on 10^6 rows);
+        "exact" rebuilds a plain k-d tree on the 2m-dimensional vectors per
+        ``(m, tau)`` (the reference).
     n_candidates : int, default=None
         Candidates per window and query for ``search="candidates"`` (default
         ``max(8 k, 64)``, fewer for records so long that the lists of one ``m``

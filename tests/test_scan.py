@@ -210,13 +210,18 @@ def test_refinement_adds_queries_at_the_dip_only(mg30):
     np.testing.assert_allclose(flat[same], fe[same], rtol=1e-12)
 
 
-def test_the_dip_is_read_off_exact_neighbourhoods():
-    # 500 queries on ~3*10^4 rows: the coarse pass uses the candidate lists, which are
-    # approximate (exact fraction < 1); the refinement gives the dip's cells the tree
-    # search with their own queries, so there the curve is the tree search's, bit for bit
+def test_the_dip_is_read_off_exact_neighbourhoods(monkeypatch):
+    # the coarse pass of a long record uses the candidate lists, which are approximate
+    # (exact fraction < 1); the refinement gives the dip's cells the tree search with their
+    # own queries, so there the curve is the tree search's, bit for bit.  A record that long
+    # takes minutes: on ~3*10^4 rows the cost model is told that trees are dear instead
+    import skdelay._scan as scan
+
     s = measured_mackey_glass(30_000, 40, noise=0.01, bits=12, seed=1)
     kw = {"m": (2, 4), "tau": range(20, 61), "n_queries": 500, "random_state": 0}
-    auto = forecast_error_curve(s, **kw)
+    with monkeypatch.context() as patch:
+        patch.setattr(scan, "TREE_BUILD", 1e3)
+        auto = forecast_error_curve(s, **kw)
     tree = forecast_error_curve(s, search="tree", refine=False, **kw)
     lists = forecast_error_curve(s, search="candidates", refine=False, **kw)
     exact, queries = auto.attrs["exact"], auto.attrs["queries"]
@@ -230,6 +235,35 @@ def test_the_dip_is_read_off_exact_neighbourhoods():
         np.testing.assert_array_equal(auto.loc[at_coarse, m], tree.loc[at_coarse, m])
         # ... and the lists alone would have given another curve there
         assert np.abs(lists.loc[near, m] / tree.loc[near, m] - 1).max() > 1e-4
+
+
+@pytest.mark.parametrize(("n_rows", "n_queries", "n_taus", "tree"), [
+    (5_000, 200, 40, True),  # benchmarks/delay_scan.py --part c: tree 0.4 s, lists 1.4 s
+    (30_000, 500, 200, True),  # tree 6.9 s, lists 7.8 s
+    (100_000, 1000, 200, True),  # tree 26.3 s, lists 22.8 s: not worth approximating
+    (100_000, 4000, 200, True),  # tree 43.2 s, lists 46.3 s
+    (6_000, 10, 100, False),  # ten queries: 0.12 s of trees against 0.05 s of lists
+    (1_000_000, 10_000, 500, False),  # the paper's coarse pass: the lists by 6.7x
+    (1_000_000, 1_000_000, 21, True),  # its full-precision check (the lists by 1.6x)
+])
+def test_auto_search_takes_the_lists_only_where_they_halve_the_cost(
+        n_rows, n_queries, n_taus, tree):
+    from skdelay._scan import _use_tree
+
+    rng = np.random.default_rng(0)
+    db_t = np.arange(10, n_rows)
+    q_t = db_t if n_queries >= n_rows else np.sort(rng.choice(db_t, n_queries, replace=False))
+    for m in (2, 5):
+        assert _use_tree(m, db_t, q_t, np.arange(1, n_taus + 1), ScanOptions()) is tree
+
+
+def test_a_coarse_pass_on_a_short_record_is_exact():
+    # 500 queries on 3*10^4 rows: the old rule (lists above 10 rows per query) used the
+    # approximate lists, although one tree per tau costs less there (and is exact)
+    s = measured_mackey_glass(30_000, 40, noise=0.01, bits=12, seed=1)
+    fe = forecast_error_curve(s, m=(2, 4), tau=range(30, 41), n_queries=500, refine=False,
+                              random_state=0)
+    assert (fe.attrs["exact"] == 1).all().all()
 
 
 def test_progress_bar_and_shared_arrays(mg30, capsys, monkeypatch):
@@ -302,7 +336,9 @@ def test_auto_search_is_exact_at_full_precision_and_uses_lists_for_sparse_querie
     assert auto.attrs["exact_fraction"] == {3: 1.0}
     np.testing.assert_allclose(
         auto.to_numpy(), forecast_error_curve(mg30[:3000], search="tree", **kw).to_numpy())
-    # 100 queries on ~3000 rows: one tree per tau would cost more than the queries
-    sparse = forecast_error_curve(mg30[:3000], n_queries=100, **kw)
-    lists = forecast_error_curve(mg30[:3000], n_queries=100, search="candidates", **kw)
+    # 10 queries on ~6000 rows and 100 taus: one tree per tau would cost more than the
+    # queries (the cost model: 0.12 s of trees against 0.05 s of lists)
+    kw["tau"] = range(1, 101)
+    sparse = forecast_error_curve(mg30, n_queries=10, **kw)
+    lists = forecast_error_curve(mg30, n_queries=10, search="candidates", **kw)
     np.testing.assert_array_equal(sparse.to_numpy(), lists.to_numpy())
