@@ -176,20 +176,24 @@ class PeriodicInterference(Effect):
     def initial(self, problem):
         """The strongest line of the whole-record multitaper search (any frequency from a few
         cycles per record to Nyquist), else its best sub-threshold candidate, else the
-        Welch-based :meth:`guess`."""
+        Welch-based :meth:`guess`; on a half of a cross-validation, the line the whole
+        record's fit chose (:func:`skdelay.gap._diagnose.pin_choices`)."""
+        pinned = getattr(problem, "pinned", {}).get(self.name)
+        if pinned is not None:  # a half of a cross-validation: the whole record's line
+            return self._line_params(problem, pinned)
         hints = getattr(problem, "line_hints", [])
         if problem.lines or hints:
-            return self._line_params(problem, (problem.lines or hints)[0])
+            return self._line_params(problem, (problem.lines or hints)[0].frequency)
         return super().initial(problem)
 
-    def _line_params(self, problem, line):
+    def _line_params(self, problem, frequency):
         from ._lines import line_amplitude
 
         # the frequency is read off the whole record (the halves of a cross-validation
         # share it: a hum of 3 cycles per record has 1.5 per half); amplitude and phase
         # come from this record's own samples, so a half's fit never sees the other half
-        amp, phase = line_amplitude(problem.real, line.frequency, problem.sample_dt)
-        return self._params(line.frequency, amp, phase)
+        amp, phase = line_amplitude(problem.real, frequency, problem.sample_dt)
+        return self._params(frequency, amp, phase)
 
     def search(self, problem, guess, objective):
         """Every line found is a starting point; the search refines the one whose hum
@@ -201,10 +205,14 @@ class PeriodicInterference(Effect):
         hum (6000 samples), three weak lines the noise raised ranked above the hum
         (z 2.77, harmonic F 118), and the hum was fitted at one of them (0.032 instead
         of 0.0143, amplitude 0.05) and then missed.  One gap evaluation per line, and
-        per sub-threshold candidate (:func:`skdelay.gap._lines.line_scan`).
+        per sub-threshold candidate (:func:`skdelay.gap._lines.line_scan`).  A half of a
+        cross-validation keeps the whole record's choice.
         """
+        if getattr(problem, "pinned", {}).get(self.name) is not None:
+            return super().search(problem, guess, objective)  # the line is chosen already
         candidates = list(problem.lines) + list(getattr(problem, "line_hints", []))
-        starts = [guess] + [self._line_params(problem, line) for line in candidates[1:]]
+        starts = [guess] + [self._line_params(problem, line.frequency)
+                            for line in candidates[1:]]
         if len(starts) > 1:
             guess = starts[int(np.argmin([objective(p) for p in starts]))]
         return super().search(problem, guess, objective)
