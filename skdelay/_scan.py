@@ -177,10 +177,10 @@ TREE_COMPONENTS = 2
 #: on the case above, 8: 20 % more).
 TREE_LEAF_SIZE = 16
 #: ``search="auto"`` costs for one ``(m, chunk of taus)`` cell (:func:`_use_tree`),
-#: in microseconds of one core.  Fitted on a quiet 2-core machine to coarse passes of noisy
-#: 12-bit Mackey-Glass (delay 100, m = 2..5, tau = 1..200, k = 30, one worker,
-#: ``refine=False``) at 3*10^4 rows (500 and 2000 queries) and 10^5 rows (1000, 4000 and
-#: 10^4 queries), ``python benchmarks/delay_scan.py --part c``:
+#: in microseconds of one core.  Fitted on a 2-core machine (one other job running) to
+#: coarse passes of noisy 12-bit Mackey-Glass (delay 100, m = 2..5, tau = 1..200, k = 30,
+#: one worker, ``refine=False``) at 3*10^4 rows (500 and 2000 queries) and 10^5 rows
+#: (1000, 4000 and 10^4 queries), ``python benchmarks/delay_scan.py --part c``:
 #:
 #: * the tree search builds one tree per tau, ``TREE_BUILD * n log2 n`` (0.014-0.016 us),
 #:   and searches and fits each query, ``TREE_QUERY`` (4.9 us at 3*10^4 rows, 7.1 at 10^5);
@@ -195,11 +195,12 @@ TREE_BUILD, TREE_QUERY = 0.015, 6.0
 LIST_ROW, LIST_QUERY, FIT_QUERY = 0.15, 0.033, 1.2
 #: The lists are approximate (sigma up to 3.5 % off at 10^5 rows; 2.7 % median, 5.9 % at
 #: most, near the dip of 10^6 rows with their 67 candidates), so ``"auto"`` takes them only
-#: where the model expects them to cost less than half the trees: the paper-scale coarse pass (10^6 rows, 10^4 queries, 500
-#: taus: 6.7x by the model; the lists' 146 s of CPU there were measured), not a
-#: full-precision scan of the dip region of the same record (1.6x: without this factor the
-#: benchmark's exact reference itself ran on the lists, 2.9 % median from the exact
-#: neighbourhoods of the default scan's dip) nor the 13 % of 10^5 rows and 1000 queries.
+#: where the model expects them to cost less than half the trees: the paper-scale coarse
+#: pass (10^6 rows, 10^4 queries, 500 taus: 6.7x by the model; the lists' 146 s of CPU
+#: there were measured), not a full-precision scan of the dip region of the same record
+#: (1.6x: without this factor the benchmark's exact reference itself ran on the lists, 2.9 %
+#: median from the exact neighbourhoods of the default scan's dip), nor 10^5 rows with 1000
+#: queries (the lists 10-13 % faster).
 LIST_ADVANTAGE = 2.0
 
 _MODES = {"none": "none", "segment": "segment", "radius": "radius"}

@@ -551,8 +551,8 @@ def pin_choices(parts, results):
     """Give the halves of a cross-validation the discrete choices made on the whole record.
 
     Which parameter drifts, and on which line a hum sits, is chosen on the whole record, as
-    the lines themselves are
-    (:class:`GapProblem` ``lines``); the halves fit and score its ramp.  Chosen on the first
+    the lines themselves are (:class:`GapProblem` ``lines``); the halves fit and score the
+    drift's ramp, or the hum's amplitude and phase.  Chosen on the first
     half alone, it was often the wrong one: a Mackey-Glass record whose ``b`` drifts by
     3.8 % holds a quarter of the change in its first half (its only discrepancy there was
     the forecast error), the first half chose ``a``, and the ramp continued over the second
