@@ -692,14 +692,16 @@ def _second_round(problem, candidates, by_name, chain, after, parallel, cv, part
 
     Led by the indicators that remain off: a localised leftover (a line, a clipped end)
     is handed to the effects that leave their mark there; a broadband best effect
-    cannot mask it.
+    cannot mask it.  An effect whose localised mark no indicator measures (a hum at a
+    sub-threshold line candidate: :meth:`Effect.has_local_mark`) is tried as well.
     """
     best = chain[0][0].name
     off = off_indicators(problem, after)
     # the band-averaged spectrum is the spectrum's broadband view: same signatures
     off_family = {"spectrum" if k == "band_spectrum" else k for k in off}
     others = [e for e in candidates if e.name != best
-              and (not e.signature or not off or set(e.signature) & off_family)]
+              and (not e.signature or not off or set(e.signature) & off_family
+                   or e.has_local_mark(problem))]
     if not others:
         return None, None, False
     more = parallel(delayed(fit_effect)(e, problem, chain) for e in others)

@@ -165,6 +165,13 @@ class Effect:
     #: cross-validation fits such an effect on the first half only
     anchored_at_start = False
 
+    def has_local_mark(self, problem):
+        """Does the record hold a localised mark of this effect that no indicator of the
+        problem measures (a sub-threshold spectral line)?  The second round of a diagnosis
+        then tries the effect even when no indicator of its signature is still off; the
+        fit must still earn its place by the residual it removes."""
+        return False
+
     # ----------------------------------------------------------------- API
     def guess(self, real, sim, sample_dt):
         """Initial parameters from the data's signature.
