@@ -54,26 +54,31 @@ def test_delay_mismatch_is_named_and_fitted(shifted):
     assert "forecast-error dip lies outside the runs' scatter" in rep.summary()
 
 
-def _context(spread, comparable=True, delay_samples=40.0):
+def _context(spread, comparable=True, delay_samples=40.0, dip_only=False):
     from types import SimpleNamespace
 
     dip = SimpleNamespace(significant=comparable, depth=0.2, baseline=1.0)
     return SimpleNamespace(sample_dt=0.5, dip=dip, dip_spread=spread, dip_real=30.0,
-                           dip_sim=40.0, delay_samples=delay_samples,
+                           dip_sim=40.0, delay_samples=delay_samples, dip_only=dip_only,
                            simulator=SimpleNamespace(params={"tau": 0.5 * delay_samples}),
                            sim_dips=[SimpleNamespace(depth=0.2, baseline=1.0)])
 
 
-@pytest.mark.parametrize("spread, comparable, half", [
-    (0.1, True, 1.0),    # a well placed dip: only the delays it allows (1 sample)
-    (0.4, True, 1.2),    # DIP_Z = 3 standard errors of the dips
-    (0.8, True, 1.5),    # never wider than the default 1.5 samples
-    (0.1, False, 10.0),  # a dip that cannot be placed: the whole dip window (40 / 4 samples)
+@pytest.mark.parametrize("spread, comparable, dip_only, half", [
+    (0.1, True, False, 1.0),    # a well placed dip: only the delays it allows (1 sample)
+    (0.4, True, False, 1.2),    # DIP_Z = 3 standard errors of the dips
+    (0.8, True, False, 1.5),    # never wider than the default 1.5 samples
+    (0.1, False, False, 10.0),  # a dip that cannot be placed: the whole dip window (40 / 4)
+    # the dip is the record's only evidence: within its own DIP_Z standard errors
+    (0.1, True, True, 0.3),
+    (0.4, True, True, 1.2),
+    (0.1, False, True, 10.0),   # (a dip that cannot be placed makes no dip-only record)
 ])
-def test_delay_search_stays_within_what_the_dip_allows(spread, comparable, half):
+def test_delay_search_stays_within_what_the_dip_allows(spread, comparable, dip_only, half):
     from skdelay.gap import DelayMismatch
 
-    lo, hi = DelayMismatch().search_bounds({"tau": 20.0}, _context(spread, comparable))["tau"]
+    ctx = _context(spread, comparable, dip_only=dip_only)
+    lo, hi = DelayMismatch().search_bounds({"tau": 20.0}, ctx)["tau"]
     assert lo == pytest.approx(20.0 - half * 0.5)
     assert hi == pytest.approx(20.0 + half * 0.5)
 

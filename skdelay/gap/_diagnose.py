@@ -1159,6 +1159,9 @@ def _run(real, simulator, sample_dt, candidates, random_state, n_jobs, n_sims, c
         ) from exc
     where = localise(problem)
     sig = significance(problem)
+    # a record whose only evidence is the dip: a delay fit stays within the dip's error
+    # (DelayMismatch.search_bounds)
+    problem.dip_only = bool(sig.get("dip_only"))
     gap_before = problem.before.gap
     parallel.step()
     parallel.start("candidate fits")

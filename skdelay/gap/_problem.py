@@ -160,6 +160,9 @@ class GapProblem:
 
     #: simulator runs whose forecast-error curves give the model's dip and its spread
     DIP_RUNS = 2
+    #: set by the diagnosis when the dip is the record's only significant discrepancy
+    #: (a delay fit then stays within the dip's standard error)
+    dip_only = False
 
     def _scan_dips(self, scan=True):
         """Forecast-error dips of the real data and of the clean runs (step 1 near the dips).
