@@ -704,7 +704,7 @@ def main(argv=None):
 
     if len(single):  # (--only may leave none)
         print("\n-- every single-effect case --")
-        print(single[["system", "true", "strength", "found", "tie", "true_params",
+        print(single[["system", "true", "strength", "found", "second", "tie", "true_params",
                       "fit_params", "error", "shrink", "gap_before"]].to_string(
                           index=False, float_format=lambda v: f"{v:.3g}"))
 
@@ -727,6 +727,10 @@ def main(argv=None):
     print(f"parameters within tolerance (of the hits): "
           f"{mod[mod.hit].recovered.mean():.0%}; median shrink {mod[mod.hit].shrink.median():.2f}")
     print(f"weak: right effect first {single[single.strength == 'weak'].hit.mean():.0%}")
+    # a single hidden cause reported with a second effect on top: the second is spurious
+    extra = single[single.second.notna()]
+    print(f"single causes reported with a second effect on top: {len(extra)} of {len(single)}"
+          + "".join(f"; {r.system} {r.true} + {r.second}" for r in extra.itertuples()))
     tied = df[df.tie.notna()]
     # a tie of pairs shares the second effect: the hidden pair is one of the two pairs
     among = [set(t.split("+")) in ({f, o}, {f, s}, {o, s}) if "+" in t else t in (f, o)
