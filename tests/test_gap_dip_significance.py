@@ -7,6 +7,7 @@ the runs' scatter.  The significance test counts the dip; no-effect records
 of the same system must not trip it.
 """
 
+import numpy as np
 import pytest
 
 from skdelay.gap import diagnose_gap
@@ -81,6 +82,52 @@ def test_delay_search_stays_within_what_the_dip_allows(spread, comparable, dip_o
     lo, hi = DelayMismatch().search_bounds({"tau": 20.0}, ctx)["tau"]
     assert lo == pytest.approx(20.0 - half * 0.5)
     assert hi == pytest.approx(20.0 + half * 0.5)
+
+
+class _Landscape:
+    """A delay fit's objective: a gap of 1000 with narrow basins (centre, floor), tracking
+    its best value like skdelay.gap._fit._Objective (``precise`` does not)."""
+
+    def __init__(self, basins, width=0.15):
+        self.basins, self.width = basins, width
+        self.best, self.n_evals, self.taus = (np.inf, None), 0, []
+
+    def gap(self, tau):
+        return min([1000.0] + [1000.0 - (1000.0 - floor) * np.exp(-((tau - c) / self.width) ** 2)
+                               for c, floor in self.basins])
+
+    def __call__(self, params):
+        self.n_evals += 1
+        self.taus.append(params["tau"])
+        g = self.gap(params["tau"])
+        if g < self.best[0]:
+            self.best = (g, dict(params))
+        return g
+
+    def precise(self, params):
+        return self.gap(params["tau"])
+
+
+def test_delay_search_leaves_the_dip_window_only_when_nothing_in_it_explains_the_gap():
+    """The dip places the search at 15 +- 0.5 (one sample); the whole dip window is
+    20 +- 5.  A record whose dip misleads (the benchmark's periodic Mackey-Glass, seed
+    14.1e6: dip window best 16.9, the true delay 15.57 outside it) has its delay found in
+    the whole window; one whose dip-allowed delays explain the gap is never searched
+    beyond them, even where a deeper basin lies outside."""
+    from skdelay.gap import DelayMismatch
+
+    eff, ctx = DelayMismatch(), _context(0.1)
+    guess = eff.initial(ctx)
+    assert guess["tau"] == pytest.approx(15.0)
+    misleading = _Landscape([(22.3, 10.0)])
+    assert eff.search(ctx, guess, misleading)["tau"] == pytest.approx(22.3, abs=0.05)
+    inside = _Landscape([(15.1, 10.0), (22.3, 1.0)])
+    assert eff.search(ctx, guess, inside)["tau"] == pytest.approx(15.1, abs=0.05)
+    assert 14.5 - 1e-9 <= min(inside.taus) and max(inside.taus) <= 15.5 + 1e-9
+    # a record whose only evidence is the dip is never searched beyond the dip's error
+    lone = _Landscape([(22.3, 10.0)])
+    eff.search(_context(0.1, dip_only=True), guess, lone)
+    assert max(lone.taus) <= 15.0 + 3 * 0.1 * 0.5 + 1e-9
 
 
 @pytest.mark.parametrize("comparable, tau", [(True, 15.0), (False, 20.0)])

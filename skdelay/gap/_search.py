@@ -30,7 +30,7 @@ def _transform(effect, key, lo, hi):
 KEEP_GUESS = {"observation": (0.25, 0.02), "simulation": (1.0, 0.1)}
 
 
-def generic_search(effect, problem, guess, objective, n_grid=None, n_refine=None):
+def generic_search(effect, problem, guess, objective, n_grid=None, n_refine=None, space=None):
     """Bounded grid + Brent (1-D) or Nelder-Mead (2-D) search around ``guess``.
 
     Returns the guess itself when the search cannot beat it clearly (flat,
@@ -39,9 +39,10 @@ def generic_search(effect, problem, guess, objective, n_grid=None, n_refine=None
     ``n_grid``, ``n_refine``: points of the 1-D grid and Brent iterations
     between its neighbours (defaults ``GRID`` and ``REFINE`` for the effect's
     target; an effect whose objective has features narrower than the default
-    spacing asks for more).
+    spacing asks for more).  ``space``: bounds to search instead of the effect's
+    :meth:`~skdelay.gap.Effect.search_bounds`.
     """
-    space = effect.search_bounds(guess, problem)
+    space = effect.search_bounds(guess, problem) if space is None else space
     keys = list(space)
     kind = effect.target
     gap_guess = objective(guess)
