@@ -730,7 +730,8 @@ def main(argv=None):
     # a single hidden cause reported with a second effect on top: the second is spurious
     extra = single[single.second.notna()]
     print(f"single causes reported with a second effect on top: {len(extra)} of {len(single)}"
-          + "".join(f"; {r.system} {r.true} + {r.second}" for r in extra.itertuples()))
+          + "".join(f"; {r.system} {r.true} read as {r.found} + {r.second}"
+                    for r in extra.itertuples()))
     tied = df[df.tie.notna()]
     # a tie of pairs shares the second effect: the hidden pair is one of the two pairs
     among = [set(t.split("+")) in ({f, o}, {f, s}, {o, s}) if "+" in t else t in (f, o)
