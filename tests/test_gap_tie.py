@@ -4,14 +4,15 @@ One noise realisation of the simulator ensemble cannot rank two effects that
 both bring the gap within the no-gap level: on the electro-optic oscillator
 with dynamical noise, measurement noise leaves as small a gap.  The tie test
 re-evaluates both on fresh seed sets and reports a tie unless a paired t-test
-separates them.
+separates them and records simulated with the runner-up as the truth do not show as
+large a difference.
 """
 
 import numpy as np
 import pytest
 
 from skdelay.gap import _diagnose, diagnose_gap
-from skdelay.gap._diagnose import TIE_BATCH, TIE_MAX_SEEDS, tie_test
+from skdelay.gap._diagnose import TIE_BATCH, TIE_MAX_SEEDS, TIE_WORLD_RECORDS, tie_test
 from skdelay.gap._effects import get_effect
 from skdelay.systems import ElectroOpticOscillator, MackeyGlass
 
@@ -37,6 +38,40 @@ def test_electro_optic_dynamical_noise_is_a_tie_between_the_noise_types():
     assert np.std(tie["gaps"][0]) > abs(tie["difference"])
     assert "cannot tell" in rep.headline()
     assert "cannot tell" in rep.summary()
+
+
+@pytest.mark.parametrize("truth, decided", [("dynamical_noise", False),
+                                             ("measurement_noise", True)])
+def test_a_paired_preference_stands_only_when_records_of_the_runner_ups_world_differ(
+        truth, decided):
+    """Electro-optic oscillator, 6000 samples, record seed 12: on fresh realisations of the
+    record measurement noise leaves less than dynamical noise (the paired test separates
+    them) whichever noise made it.  With dynamical noise the truth, records simulated
+    with dynamical noise, both noises fitted anew, show as large a difference: the record
+    cannot tell, and the report says so rather than preferring the wrong one.  With
+    measurement noise (3 %) the truth the difference lies beyond them: decided."""
+    eo = ElectroOpticOscillator()
+    if truth == "dynamical_noise":
+        real = eo.simulate(6000, sample_dt=0.25, random_state=12, dynamical_noise=0.1)
+    else:
+        x = eo.simulate(6000, sample_dt=0.25, random_state=12)
+        real = x + 0.03 * x.std() * np.random.default_rng(13).standard_normal(x.size)
+    rep = diagnose_gap(real, eo, sample_dt=0.25, effects=NOISES, random_state=5,
+                       cross_validated=False, combine=False)
+    tie = rep.tie
+    assert tie["effects"] == ["measurement_noise", "dynamical_noise"]
+    assert abs(tie["t"]) > tie["critical"]  # the paired test alone would decide
+    world = tie["runner_up_world"]
+    assert len(world["runner_up"]) == len(world["better"]) == TIE_WORLD_RECORDS
+    assert (world["difference"] > world["bound"]) is decided
+    assert tie["decided"] is decided
+    summary = rep.summary()
+    if decided:
+        assert "measurement_noise is preferred to dynamical_noise" in summary
+        assert "on records simulated with dynamical_noise as the truth" in summary
+    else:
+        assert "cannot tell measurement_noise from dynamical_noise" in summary
+        assert "records simulated with dynamical_noise as the truth show" in summary
 
 
 def test_no_tie_test_when_the_runner_up_does_not_explain_the_record():
@@ -71,12 +106,36 @@ def _table(first="measurement_noise", second="dynamical_noise"):
     ])
 
 
-@pytest.mark.parametrize("offset, decided, first", [
-    (2.0, True, "measurement_noise"),   # the runner-up leaves more on every seed set
-    (-2.0, True, "dynamical_noise"),    # the runner-up leaves less: it goes first
-    (0.0, False, "measurement_noise"),  # no difference: a tie, the order stays
+def _worlds(monkeypatch, separation):
+    """On records simulated with either chain as the truth, the true chain leaves
+    ``separation`` less than the other (scatter 0.3); returns the truths asked for."""
+    rng = np.random.default_rng(1)
+    asked = []
+
+    def fake_world(problem, seed, chains, truth):
+        asked.append(truth)
+        # chains[1] minus chains[0]: negative where chains[1] is the truth
+        return (-separation if truth == 1 else separation) + rng.normal(0, 0.3)
+
+    monkeypatch.setattr(_diagnose, "_world_difference", fake_world)
+    return asked
+
+
+@pytest.mark.parametrize("offset, separation, decided, first", [
+    (2.0, 2.0, True, "measurement_noise"),   # the runner-up leaves more on every seed set
+    (-2.0, 2.0, True, "dynamical_noise"),    # the runner-up leaves less: it goes first
+    (2.0, 0.5, True, "measurement_noise"),   # the worlds differ less than this record
+    (0.0, 2.0, False, "measurement_noise"),  # no difference: a tie, the order stays
+    # the paired test separates them on this record, but records simulated with the
+    # runner-up as the truth show as large a difference: a tie, the better first
+    (2.0, -2.0, False, "measurement_noise"),
+    (-2.0, -2.0, False, "dynamical_noise"),
+    # ... or records of the better one's world show far larger ones: this record is
+    # like neither
+    (2.0, 10.0, False, "measurement_noise"),
 ])
-def test_tie_test_decides_by_the_paired_differences(monkeypatch, offset, decided, first):
+def test_tie_test_decides_by_the_paired_differences_and_the_candidates_worlds(
+        monkeypatch, offset, separation, decided, first):
     rng = np.random.default_rng(0)
 
     def fake_pair(problem, seed, chains):
@@ -84,13 +143,38 @@ def test_tie_test_decides_by_the_paired_differences(monkeypatch, offset, decided
         return [g, g + offset + rng.normal(0, 0.3)]
 
     monkeypatch.setattr(_diagnose, "_evaluate_pair", fake_pair)
+    asked = _worlds(monkeypatch, separation)
     by_name = {n: get_effect(n) for n in NOISES}
     tie = tie_test(None, _table(), by_name, threshold=5.0, parallel=_Stages())
     assert tie["decided"] is decided
     assert tie["swapped"] is (offset < 0)
     assert tie["effects"][0] == first
-    assert tie["n_realisations"] == (TIE_BATCH + 1 if decided else TIE_MAX_SEEDS + 1)
-    assert (abs(tie["t"]) > tie["critical"]) is decided
+    paired = offset != 0.0  # the paired test alone decides
+    assert tie["n_realisations"] == (TIE_BATCH + 1 if paired else TIE_MAX_SEEDS + 1)
+    assert (abs(tie["t"]) > tie["critical"]) is paired
+    # the worlds are asked only after a paired decision: the runner-up's, then the better's
+    runner_up = 1 if offset > 0 else 0
+    assert asked == ([runner_up] * TIE_WORLD_RECORDS + [1 - runner_up] * TIE_WORLD_RECORDS
+                     if paired else [])
+    world = tie["runner_up_world"]
+    if not paired:
+        assert world is None
+        return
+    assert len(world["runner_up"]) == len(world["better"]) == TIE_WORLD_RECORDS
+    # runner-up minus better: negative in the runner-up's world when it fits its own records
+    assert np.sign(np.mean(world["runner_up"])) == -np.sign(separation)
+    diff = world["difference"]  # on the fresh seed sets: the first pair was fitted on
+    assert diff == pytest.approx(abs(np.mean(np.diff(tie["gaps"], axis=0)[0, 1:])))
+    assert decided is (world["better_bound"] <= diff > world["bound"])
+    from types import SimpleNamespace
+
+    from skdelay.gap._report import GapReport
+
+    words = GapReport._tie_words(SimpleNamespace(tie=tie))
+    assert ("is preferred to" in words) is decided, words
+    if not decided:
+        assert "cannot tell" in words and "above" in words, words
+        assert ("show differences up to" in words) is (diff <= world["bound"]), words
 
 
 def test_tie_test_is_not_asked_when_a_candidate_leaves_more_than_the_threshold(monkeypatch):
@@ -185,6 +269,7 @@ def test_second_tie_test_ranks_two_second_effects_on_fresh_realisations(monkeypa
         return [1.0 + 0.01 * seed, 1.0 + offset + 0.01 * seed + 0.1 * (-1) ** seed]
 
     monkeypatch.setattr(_diagnose, "_evaluate_pair", fake_pair)
+    _worlds(monkeypatch, 2.0)  # the runner-up's world shows the opposite order
     chain = [(by_name["periodic_interference"], {})]
     tie = second_tie_test(None, second, [None, None], by_name, chain, 5.0, _Stages())
     assert seen[0] == [["periodic_interference", "timebase_mismatch"],

@@ -142,21 +142,27 @@ class GapProblem:
         self.spectrum_view = spectrum_view(real, runs[:2], self.sample_dt) if scan_dips else None
         self.indicators = make_indicators(real, runs, self.sample_dt, self.delay_samples,
                                           self.lines)
-        self.real_z = zscore(real)
-        self.real_features, self.real_var = {}, {}
-        for k, ind in self.indicators.items():
-            if ind.paired:
-                self.real_features[k] = ind.profile(self.real_z, database=zscore(runs[0]))[0]
-            elif hasattr(ind, "profile_with_var"):  # the record's own estimation variance
-                self.real_features[k], self.real_var[k] = ind.profile_with_var(self.real_z)
-            else:
-                self.real_features[k] = ind.profile(self.real_z)[0]
+        self._set_real(real)
         self.base_features = profiles(self.indicators, runs, blocks=True)
         self.base_var = {k: ensemble_stats(f, self.indicators[k], b)[1]
                          for k, (f, b) in self.base_features.items()}
         self._scan_dips(scan_dips)
         self.before = self._compare({k: f for k, (f, _) in self.base_features.items()}, runs)
         self.null_gaps = self._null_gaps()
+
+    def _set_real(self, real):
+        """The record's z-scored series and its indicator profiles (on the indicators' bins)."""
+        self.real = real
+        self.real_z = zscore(real)
+        self.real_features, self.real_var = {}, {}
+        for k, ind in self.indicators.items():
+            if ind.paired:
+                self.real_features[k] = ind.profile(self.real_z,
+                                                    database=zscore(self.base[0]))[0]
+            elif hasattr(ind, "profile_with_var"):  # the record's own estimation variance
+                self.real_features[k], self.real_var[k] = ind.profile_with_var(self.real_z)
+            else:
+                self.real_features[k] = ind.profile(self.real_z)[0]
 
     #: simulator runs whose forecast-error curves give the model's dip and its spread
     DIP_RUNS = 2
@@ -386,6 +392,33 @@ class GapProblem:
         twin.effect_seed = int(rng.integers(0, 2**31 - 1))
         twin.base = [run_simulator(self.simulator, self.n_samples, self.sample_dt, s, {})
                      for s in twin.sim_seeds]
+        return twin
+
+    def world(self, chain, seed):
+        """This problem reseeded (:meth:`reseeded`) with a record simulated as simulator +
+        ``chain`` in place of the real one: a record of the world in which ``chain`` is the
+        truth, on the original indicators' bins.  Its own seeds differ from the ensemble's.
+
+        :func:`~skdelay.gap._diagnose.compare_chains` asks such records whether a difference
+        between two explanations seen on the real record could arise were the runner-up true.
+        What the real record's signatures say (its lines, its forecast-error dips) stays
+        the real record's: it only sets where fits start and search.  Raises ``CandidateFailed`` when the chain yields no record of the real one's length.
+        """
+        import copy
+
+        twin = self.reseeded(seed)
+        rng = np.random.default_rng(np.random.SeedSequence([self.effect_seed, int(seed), 1]))
+        source = copy.copy(twin)
+        source.sim_seeds = rng.integers(0, 2**31 - 1, size=1)
+        source.effect_seed = int(rng.integers(0, 2**31 - 1))
+        source.base = [run_simulator(self.simulator, self.n_samples, self.sample_dt,
+                                     source.sim_seeds[0], {})]
+        record = source.ensemble(chain, "full")[0]
+        if record.size != self.n_samples:
+            raise CandidateFailed(f"the chain made a record of {record.size} samples, "
+                                  f"not {self.n_samples}")
+        twin._set_real(record)
+        twin.before = twin.evaluate([], "full")
         return twin
 
     def line_contribution(self):

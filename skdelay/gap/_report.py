@@ -89,8 +89,10 @@ class GapReport:
         When the two best candidates each explain the record in-sample, their
         gaps on fresh noise realisations (:func:`skdelay.gap._diagnose.tie_test`):
         ``effects``, ``gaps``, ``difference``, ``se``, ``t``, ``critical``,
-        ``n_realisations`` and ``decided`` (False: the record cannot tell the
-        two apart at this length).  None when the test was not needed.
+        ``n_realisations``, ``decided`` (False: the record cannot tell the
+        two apart at this length) and ``runner_up_world`` (when the paired
+        differences separate them: the same difference on records simulated
+        with either candidate as the truth).  None when the test was not needed.
     """
 
     best_effect: str | None
@@ -263,14 +265,29 @@ class GapReport:
         gaps = (f"over {n} noise realisations {a} leaves a gap of {np.mean(ga):.3g} on "
                 f"average and {b} {np.mean(gb):.3g} (difference {t['difference']:.3g} +- "
                 f"{t['se']:.2g}")
+        world = t.get("runner_up_world")
         if t["decided"]:
+            seen = ("" if world is None else
+                    f"; on records simulated with {b} as the truth the difference is "
+                    f"{np.mean(world['runner_up']):.2g} on average, at most "
+                    f"{world['bound']:.2g} on one more such record")
             return (f"The {kind} {a} are preferred to {b}, which also explain"
                     if pair else
                     f"The effect {a} is preferred to {b}, which also explains") + (
-                f" the record in-sample: {gaps}, t = {t['t']:.2g} above {t['critical']:.2g}).")
-        return (f"The {kind} {b} {'do' if pair else 'does'} as well: {gaps}, "
-                f"t = {t['t']:.2g} within {t['critical']:.2g}), so this record cannot tell "
-                f"{a} from {b}; a longer record may.")
+                f" the record in-sample: {gaps}, t = {t['t']:.2g} above "
+                f"{t['critical']:.2g}){seen}.")
+        if world is None:
+            why = f"t = {t['t']:.2g} within {t['critical']:.2g})"
+        else:  # the paired test separated them (a first); the candidates' worlds did not
+            diff = world["difference"]
+            why = (f"t = {t['t']:.2g} above {t['critical']:.2g}), but "
+                   + (f"records simulated with {b} as the truth show differences up to "
+                      f"{world['bound']:.2g} in favour of {a}"
+                      if diff <= world["bound"] else
+                      f"records simulated with {a} as the truth favour it by at least "
+                      f"{world['better_bound']:.2g}, more than this record's {diff:.2g}"))
+        return (f"The {kind} {b} {'do' if pair else 'does'} as well: {gaps}, {why}, so "
+                f"this record cannot tell {a} from {b}; a longer record may.")
 
     def headline(self):
         """Where the data differ, which effect explains it (or how much of it), how far."""
