@@ -445,8 +445,11 @@ def run_case(case, n, sample_dt):
     out["explained"] = rep.explained
     # an undecided tie test: the record cannot tell the best effect from this one
     out["tie"] = (rep.tie["effects"][1] if rep.tie and not rep.tie["decided"] else None)
+    # "tie, by the worlds": the paired test separated them on this record, but records
+    # simulated with the runner-up as the truth (or the better one) did not agree
     out["tie_test"] = ("-" if rep.tie is None else
                        f"{'decided' if rep.tie['decided'] else 'tie'}"
+                       f"{', by the worlds' if rep.tie.get('runner_up_world') and not rep.tie['decided'] else ''}"
                        f"{', swapped' if rep.tie.get('swapped') else ''} "
                        f"({rep.tie['n_realisations']} realisations)")
     hums = [params for name, params in case["chain"] if name == "periodic_interference"]
