@@ -402,7 +402,8 @@ class GapProblem:
         :func:`~skdelay.gap._diagnose.compare_chains` asks such records whether a difference
         between two explanations seen on the real record could arise were the runner-up true.
         What the real record's signatures say (its lines, its forecast-error dips) stays
-        the real record's: it only sets where fits start and search.  Raises ``CandidateFailed`` when the chain yields no record of the real one's length.
+        the real record's: it only sets where fits start and search.  Raises
+        ``CandidateFailed`` when the chain yields no record of the real one's length.
         """
         import copy
 
