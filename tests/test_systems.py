@@ -154,6 +154,16 @@ def test_seeded_runs_are_reproduced_across_versions(system, kwargs, values):
     np.testing.assert_allclose(x[[0, 999, 1999]], values, rtol=1e-12, atol=0)
 
 
+def test_the_step_loop_is_compiled_without_reference_counts_on_this_numba():
+    """The integrator's speed rests on numba's ``_nrt`` switch (skdelay._jit): a numba
+    that drops it still runs, bit-identically but several times slower; this says so."""
+    from skdelay import _jit
+    from skdelay.systems import _integrate
+
+    assert _jit._PLAIN, "numba has no _nrt switch any more: the integrator runs with NRT"
+    assert _integrate._advance.targetoptions.get("_nrt") is False
+
+
 def test_sample_dt_and_default_step():
     mg = MackeyGlass()
     fine = mg.simulate(400, sample_dt=0.5, random_state=0, transient=500)

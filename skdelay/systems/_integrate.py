@@ -35,6 +35,7 @@ import numpy as np
 from numba import njit
 from numba.extending import overload
 
+from .._jit import plain_kernel
 from ._tags import tag_class
 
 #: tag class -> (rhs, jac) of every registered system
@@ -160,9 +161,11 @@ def stencils(tau_steps, starts, weights):
 
 # The per-step helpers below are inlined into the kernels at numba's IR level
 # (``inline="always"``): a call with array arguments costs more than a small system's
-# arithmetic, and inlining them made Mackey-Glass runs 1.5x and the Ikeda and
-# electro-optic runs 2.5x faster (benchmarks/simulate.py), with bit-identical output
-# (the same floating-point operations in the same order).
+# arithmetic.  The integrator's step loop (:func:`_advance`) also runs without the
+# runtime's reference counts (:mod:`skdelay._jit`).  Together: Mackey-Glass 173 -> 37 ns
+# per RK4 step, Ikeda 2x, the electro-optic oscillator 2.5x faster
+# (benchmarks/out/simulate_stop36.txt), with bit-identical output (the same
+# floating-point operations in the same order; tests/test_systems.py pins seeded runs).
 @njit(cache=True, inline="always")
 def delayed(current, ring, slot, starts, weights, c):
     """Interpolated history value (stencil ``c``); ``slot`` = ring position of the current step."""
@@ -247,15 +250,21 @@ def integrate_chunk(tag, x, ring, counter, l, p, p0, dp, tau0, dtau, drift, rec_
     became non-finite (``len(out)`` when all is well).
     """
     d = x.shape[0]
+    return _advance(tag, x, ring, counter, l, p, p0, dp, tau0, dtau, drift, rec_start, rec_len,
+                    dt, every, noise, noise_idx, out, np.empty((4, d)), np.empty((4, d)),
+                    np.empty(4), np.empty(3, dtype=np.int64), np.empty((3, 4)))
+
+
+@plain_kernel
+def _advance(tag, x, ring, counter, l, p, p0, dp, tau0, dtau, drift, rec_start, rec_len, dt,
+             every, noise, noise_idx, out, k, xs, xd, starts, weights):
+    """:func:`integrate_chunk` with its work arrays given (``k``, ``xs``: (4, d), ``xd``:
+    (4,), ``starts``: (3,) int64, ``weights``: (3, 4)); see :mod:`skdelay._jit`."""
+    d = x.shape[0]
     m_ring = ring.shape[0]
-    k = np.empty((4, d))
-    xs = np.empty((4, d))
-    xd = np.empty(4)
     n = counter[0]
     slot = n % m_ring
     use_noise = noise.shape[0] > 0
-    starts = np.empty(3, dtype=np.int64)
-    weights = np.empty((3, 4))
     stencils(tau0 / dt, starts, weights)
     step = 0
     for i in range(out.shape[0]):
