@@ -3,9 +3,10 @@
 A step loop that hands its work arrays to small helpers (inlined with
 ``inline="always"``) makes numba's runtime (NRT) count a reference for every
 such pass.  Those counts are atomic operations, and in the tightest loops they
-cost more than the arithmetic: 180 000 Mackey-Glass RK4 steps take 16 ms with
-them and 7 ms without (the output is bit-identical: the same floating-point
-operations in the same order).
+cost more than the arithmetic: in the delay-system integrator they took more
+than half of a Mackey-Glass RK4 step (benchmarks/out/simulate_stop36.txt).
+Skipping them leaves the output bit-identical: the same floating-point
+operations in the same order.
 
 :func:`plain_kernel` compiles a function without the runtime.  Such a kernel
 must not allocate, return or store arrays: a thin ordinary ``njit`` wrapper

@@ -162,8 +162,8 @@ def stencils(tau_steps, starts, weights):
 # The per-step helpers below are inlined into the kernels at numba's IR level
 # (``inline="always"``): a call with array arguments costs more than a small system's
 # arithmetic.  The integrator's step loop (:func:`_advance`) also runs without the
-# runtime's reference counts (:mod:`skdelay._jit`).  Together: Mackey-Glass 173 -> 37 ns
-# per RK4 step, Ikeda 2x, the electro-optic oscillator 2.5x faster
+# runtime's reference counts (:mod:`skdelay._jit`).  Together: a Mackey-Glass RK4 step
+# 155 -> 41 ns, Ikeda runs 2.3x and electro-optic runs 2.7x faster
 # (benchmarks/out/simulate_stop36.txt), with bit-identical output (the same
 # floating-point operations in the same order; tests/test_systems.py pins seeded runs).
 @njit(cache=True, inline="always")
