@@ -55,6 +55,30 @@ def test_partly_wording_never_says_explains(hum_report):
     assert "still above the no-gap threshold" in far
 
 
+def test_a_rest_within_the_threshold_is_not_said_to_lie_outside_the_library(hum_report):
+    """Only broadband indicators off and the rest under the no-gap threshold: no second cause
+    was sought, and the text says so instead of "outside the effect library"."""
+    thr = hum_report.significance["threshold"]
+    info = dict(hum_report.info, small_rest=True)
+    small = dataclasses.replace(hum_report, explained="partly", info=info,
+                                gap_after=0.5 * thr,
+                                shrink=1.0 - 0.5 * thr / hum_report.gap_before,
+                                reasons=["band_spectrum still off (gap 1.65, largest |z| 2.8)"])
+    text = small.summary()
+    _, which, far = sentences(text)
+    pct = f"{100 * small.shrink:.0f} %"
+    assert which == (f"The effect periodic_interference accounts for {pct} of it; the rest "
+                     "would not be called a gap, too little to name a second cause, though 1 "
+                     "indicator still differs (details below).")
+    assert "within the no-gap threshold" in far
+    assert "outside the effect library" not in text and "explains" not in text
+    assert "What remains: band_spectrum still off" in text
+    # the flag alone does not speak for a rest above the threshold
+    above = dataclasses.replace(small, gap_after=2.0 * thr,
+                                shrink=1.0 - 2.0 * thr / hum_report.gap_before)
+    assert "the rest lies outside the effect library" in above.summary()
+
+
 def test_no_gap_wording(hum_report):
     sig = dict(hum_report.significance, significant=False)
     quiet = dataclasses.replace(hum_report, significance=sig, best_effect=None)

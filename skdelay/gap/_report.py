@@ -115,7 +115,7 @@ class GapReport:
     def from_problem(cls, problem, *, table, where, significance, best_effect, combined, after,
                      lacking=(),
                      explained="no gap", reasons=(), checks=(), cv_shrink=None,
-                     cross_validated=False, tie=None):
+                     cross_validated=False, tie=None, small_rest=False):
         """Assemble the report from a solved :class:`GapProblem`."""
         from ._where import localise
 
@@ -146,7 +146,8 @@ class GapReport:
                 "dip_curves": problem.dip_curves, "spectrum_view": problem.spectrum_view,
                 "lines": [(ln.frequency, ln.amplitude, ln.z) for ln in problem.lines],
                 "sim_dip_centres": [d.centre for d in problem.sim_dips],
-                "second_dips": [d.centre for d in problem.second_dips], **info_cv}
+                "second_dips": [d.centre for d in problem.second_dips],
+                "small_rest": bool(small_rest), **info_cv}
         return cls(best_effect=best_effect, effects=table, where=where, gap_before=gap_before,
                    gap_after=gap_after, shrink=1.0 - max(gap_after, 0.0) / gap_before
                    if gap_before > 0 else 0.0, significance=significance, combined=combined,
@@ -328,6 +329,13 @@ class GapReport:
                      f"{100 * self.shrink:.0f} % of it and leave{'' if len(names) > 1 else 's'} "
                      "no indicator off, but the data's own evidence does not confirm the "
                      f"fitted values: {failed}.")
+        elif self._small_rest():
+            n_off = len(self.reasons)
+            which = (f"{label} account{'' if len(names) > 1 else 's'} for "
+                     f"{100 * self.shrink:.0f} % of it; the rest would not be called a gap, "
+                     f"too little to name a second cause, though {n_off} "
+                     f"indicator{'s' if n_off > 1 else ''} still "
+                     f"differ{'' if n_off > 1 else 's'} (details below).")
         else:
             which = (f"{label} account{'' if len(names) > 1 else 's'} for part of it "
                      f"({100 * self.shrink:.0f} %); the rest lies outside the effect library.")
@@ -338,6 +346,12 @@ class GapReport:
                f"{self.gap_before:.3g} to {self.gap_after:.3g} ({100 * self.shrink:.0f} % "
                f"removed{cv}), {state} the no-gap threshold {thr:.3g}.")
         return f"{where} {which} {far}"
+
+    def _small_rest(self):
+        """Is what the effects leave too small to be called a gap, with only broadband
+        indicators off (the diagnosis sought no second cause for it)?"""
+        return bool(self.info.get("small_rest") and self.explained == "partly"
+                    and self.gap_after <= self.significance["threshold"])
 
     def _only_unchecked(self):
         """Is every reason against "fully" a failed independent-evidence check (no indicator
@@ -380,6 +394,11 @@ class GapReport:
             text.append(f"Best explanation: {row['effect']} ({desc}): {row['description']}. "
                         f"It removes {100 * row['shrink']:.0f}% of the gap "
                         f"({row['gap_before']:.3g} -> {row['gap_after']:.3g}).")
+        elif self._small_rest():
+            text.append(f"Explained up to a rest within the no-gap threshold "
+                        f"({100 * self.shrink:.0f} % removed) by {' + '.join(names)} "
+                        f"({row['description']}); no second cause is named for so small a "
+                        "rest.")
         else:
             text.append(f"Partly explained ({100 * self.shrink:.0f} %) by "
                         f"{' + '.join(names)} ({row['description']}); the rest lies outside "
