@@ -8,6 +8,7 @@ import pytest
 
 from skdelay.gap import Effect, diagnose_gap, get_effect
 from skdelay.gap._diagnose import MIN_SHRINK
+from skdelay.gap._effects import NotApplicable
 from skdelay.gap._problem import GapProblem
 from skdelay.systems import MackeyGlass
 
@@ -322,3 +323,43 @@ def test_an_untested_candidate_ranks_by_its_in_sample_share_against_tested_ones(
     df.loc[0, ["shrink", "shrink_fit"]] = 0.995
     order = _untested_in_place(df, scores)
     assert df.loc[order, "effect"].iloc[0] == "outliers"
+
+
+def test_halves_score_the_spikes_counted_on_the_whole_record():
+    """Five spikes, one in the first half and four in the second (benchmark seed 15.0e6):
+    each half measured its own, was scored on the other half's Poisson luck, and the
+    cross-validated shrink read 0.29 against 0.997 in-sample, so nothing was named.  The
+    halves now score the whole record's count and height; a half without a spike of its
+    own keeps its own reading (it cannot test them)."""
+    from skdelay.gap import Outliers
+    from skdelay.gap._diagnose import pin_choices
+
+    x = MG.simulate(6000, random_state=7104)
+    real = x.copy()
+    for i, sign in zip((1700, 3400, 4100, 4900, 5600), (1, -1, 1, -1, 1)):
+        real[i] += sign * 4.9 * x.std()
+    problem = GapProblem(real, MG, n_sims=3, random_state=1)
+    first, second = problem.split()
+    out = Outliers()
+    assert out.counted(problem) and not out.counted(first) and out.counted(second)
+    whole = SimpleNamespace(effect="outliers", ok=True, params={"rate": 5 / 6000, "size": 4.9})
+    pin_choices((first, second), [whole])  # without the whole record: nothing counted
+    assert "outliers" not in first.pinned
+    pin_choices((first, second), [whole], problem)
+    assert first.pinned["outliers"] == second.pinned["outliers"] == whole.params
+    for half in (first, second):
+        start = out.initial(half)
+        assert start["rate"] == pytest.approx(5 / 6000) and start["size"] == 4.9
+        assert out.search_bounds(start, half) == {}  # scored as counted, not searched
+    # a half without a spike of its own: outliers do not apply there, pinned or not
+    clean = GapProblem(np.concatenate([x[:3000], real[3000:]]), MG, n_sims=3,
+                       random_state=1).split()[0]
+    pin_choices((clean,), [whole], problem)
+    with pytest.raises(NotApplicable):
+        out.initial(clean)
+
+    rep = diagnose_gap(real, MG, random_state=2, n_jobs=1,
+                       effects=["outliers", "measurement_noise", "dynamical_noise"])
+    assert rep.best_effect == "outliers", rep.effects[["effect", "shrink", "status"]]
+    row = rep.effects.set_index("effect").loc["outliers"]
+    assert row["cross_validated"] and row["shrink"] > 0.5

@@ -22,6 +22,7 @@ from ._effects import (
 )
 from ._fit import fit_effect, initial_params
 from ._lines import F_ALPHA, without_lines
+from ._observation import Outliers
 from ._problem import GapProblem
 from ._range import range_test
 from ._report import GapReport
@@ -600,7 +601,7 @@ def _applies(effect, part):
     return True
 
 
-def pin_choices(parts, results):
+def pin_choices(parts, results, problem=None):
     """Give the halves of a cross-validation the discrete choices made on the whole record.
 
     Which parameter drifts, and on which line a hum sits, is chosen on the whole record, as
@@ -611,6 +612,9 @@ def pin_choices(parts, results):
     the forecast error), the first half chose ``a``, and the ramp continued over the second
     half removed nothing (cross-validated shrink -0.09, in-sample 0.95); with ``b`` the
     true ramp takes the second half's gap from 23 to 2.4.
+
+    With the whole record's ``problem``, spikes it counted (:meth:`Outliers.counted`)
+    are pinned too: each half that holds a spike scores the whole record's rate and size.
     """
     pins = {r.effect: r.params["parameter"] for r in results
             if r.ok and r.effect == "parameter_drift" and "parameter" in r.params}
@@ -622,6 +626,11 @@ def pin_choices(parts, results):
     # shrink read -0.41 and nothing was named
     pins.update({r.effect: float(r.params["frequency"]) for r in results
                  if r.ok and r.effect == "periodic_interference" and "frequency" in r.params})
+    if problem is not None:
+        counted = [r for r in results if r.ok and r.effect == "outliers"
+                   and {"rate", "size"} <= set(r.params) and Outliers().counted(problem)]
+        pins.update({r.effect: {"rate": r.params["rate"], "size": r.params["size"]}
+                     for r in counted})
     for part in parts:
         part.pinned = dict(getattr(part, "pinned", {}), **pins)
 
@@ -773,7 +782,7 @@ def _second_round(problem, candidates, by_name, chain, after, parallel, cv, part
         best_on_half = cv[1].get(best, (np.nan, (None, None)))[1]
         worth = _worth_cv(more, after.gap)
         ok = [by_name[r.effect] for r in more if r.effect in worth]
-        pin_choices(parts, more)
+        pin_choices(parts, more, problem)
         parallel.start("second cross-validation")
         cv2 = cross_validate(ok, parts, parallel, [(by_name[best], best_on_half)]) \
             if (ok and any(best_on_half)) else None
@@ -1324,7 +1333,7 @@ def _run(real, simulator, sample_dt, candidates, random_state, n_jobs, n_sims, c
     if parts is not None and sig["significant"] and not sig.get("dip_only"):
         worth = _worth_cv(results, gap_before)
         ok = [by_name[r.effect] for r in results if r.effect in worth]
-        pin_choices(parts, results)
+        pin_choices(parts, results, problem)
         parallel.start("cross-validation")
         cv = cross_validate(ok, parts, parallel) if ok else None
     table, evaluations = _table(results, gap_before, problem, by_name, cv)
