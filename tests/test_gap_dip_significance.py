@@ -152,3 +152,36 @@ def test_a_dip_beyond_the_search_window_is_placed_from_the_whole_curve():
     assert rep.best_effect == "delay_mismatch", rep.effects[["effect", "shrink"]]
     tau = rep.effects.set_index("effect").loc["delay_mismatch", "params"]["tau"]
     assert abs(tau - 3.3) < 0.25  # one sample
+
+
+def _curve(taus, centre, depth):
+    """A forecast-error curve: baseline 1, a Gaussian dip, and a fixed ripple (0.2 %) that
+    gives the dip test its roughness standard error."""
+    taus = np.asarray(taus, dtype=float)
+    ripple = 0.002 * np.sin(2.3 * taus) * np.cos(0.7 * taus)
+    return 1.0 - depth * np.exp(-0.5 * (taus - centre) ** 2) + ripple
+
+
+@pytest.mark.parametrize("sim_depth, placed", [
+    (0.12, True),   # the runs dip 12 %: a 9.6 % dip is as deep as the model allows
+    (0.25, False),  # the runs dip 25 %: 9.6 % is too shallow to place (filled by noise)
+])
+def test_a_shallow_dip_counts_when_the_models_own_is_shallow(monkeypatch, sim_depth, placed):
+    """Ikeda at step 0.5 (benchmark seed 15.1e6): the record (delay 13 samples against 10)
+    dipped 9.6 % at z 3.8 against the runs' 11-12 %, and the scan's fixed floor of 10 %
+    left a 3-sample shift unseen.  The floor is half the runs' own relative depth when that
+    is lower."""
+    from skdelay.gap import _indicators
+    from skdelay.gap._where import dip_shift_significant
+
+    taus = np.arange(1, 26)
+    monkeypatch.setattr(_indicators, "fe_scan", lambda x, d=None, with_se=False, **kw: (
+        taus, _curve(taus, 13.0, 0.096), np.full(taus.size, 0.002)))
+    monkeypatch.setattr(_indicators, "fe_curve", lambda x, t, with_se=False, **kw: (
+        (_curve(t, 10.0, sim_depth), np.full(len(t), 0.002)) if with_se
+        else _curve(t, 10.0, sim_depth)))
+    real = IKEDA.simulate(3000, sample_dt=DT, random_state=5171)
+    problem = GapProblem(real, IKEDA, sample_dt=DT, n_sims=3, random_state=3, n_jobs=1)
+    assert problem.dip.significant is placed, problem.dip.reason
+    assert abs(problem.dip_real - 13.0) < 0.2 and abs(problem.dip_sim - 10.0) < 0.2
+    assert dip_shift_significant(problem) is placed

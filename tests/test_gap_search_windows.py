@@ -235,3 +235,54 @@ def test_a_long_delays_window_is_searched_with_a_bounded_number_of_points():
     fit = eff.search(ctx, {"tau": 400.0}, objective)
     assert len(objective.calls) <= 1 + eff.MAX_GRID + eff.REFINE + 2
     assert fit["tau"] == pytest.approx(371.3, abs=0.5)
+
+
+def test_dynamical_noise_is_polished_on_every_run():
+    """The search of a simulation effect re-simulates two runs per evaluation, while
+    measurement noise is scored on all of them; the dynamical noise is polished on every
+    run so the two compete at the same reading.  Electro-optic oscillator at step 0.25
+    with dynamical noise 0.11: the default search ended at 0.123 (gap 0.97 on every run);
+    polished, the gap falls below a third of that, the intensity within 15 % of the truth."""
+    from skdelay.gap._fit import fit_effect
+    from skdelay.gap._problem import GapProblem
+    from skdelay.gap._simulation import DynamicalNoise
+
+    eo, dt = ElectroOpticOscillator(), 0.25
+    real = eo.simulate(6000, sample_dt=dt, random_state=5182, dynamical_noise=0.11)
+    problem = GapProblem(real, eo, sample_dt=dt, random_state=5182, n_jobs=1)
+    polished = fit_effect(DynamicalNoise(), problem)
+
+    class Unpolished(DynamicalNoise):
+        POLISH_FINEST = 2.0  # above POLISH_STEP: the default search alone
+
+    plain = fit_effect(Unpolished(), problem)
+    assert polished.gap_after < plain.gap_after / 3, (polished.params, plain.params)
+    assert polished.params["dynamical_noise"] == pytest.approx(0.11, rel=0.15)
+
+
+@pytest.mark.parametrize("left, wide_left, expected", [
+    (0.05, 0.01, "dip"),    # the dip's delay explains 95 %: the window is not searched
+    (0.60, 0.015, "wide"),  # Mackey-Glass, delay 15.57 against 17 (benchmark seed 14.1e6)
+    (0.60, 0.45, "dip"),    # elsewhere not even halved: the dip's delay stays
+    (0.80, 0.70, "wide"),   # beyond ESCAPE_LEFT, as before: the window's best
+])
+def test_a_delay_that_explains_part_of_the_gap_is_checked_against_the_window(
+        monkeypatch, left, wide_left, expected):
+    from skdelay.gap._simulation import DelayMismatch
+
+    delay = DelayMismatch()
+    problem = _dips(17.5, 17.0, 0.2)
+    problem.simulator = SimpleNamespace(params={"tau": 17.0})
+    problem.delay_samples, problem.dip_only = 17.0, False
+    calls = []
+
+    def grid(self, problem_, guess, objective, lo, hi):
+        calls.append((lo, hi))
+        return {"tau": 17.5} if len(calls) == 1 else {"tau": 15.6}
+
+    monkeypatch.setattr(DelayMismatch, "_grid", grid)
+    gaps = {17.0: 100.0, 17.5: 100.0 * left, 15.6: 100.0 * wide_left}  # shares of the gap at 17
+    objective = SimpleNamespace(precise=lambda p: gaps[p["tau"]])
+    best = delay.search(problem, {"tau": 17.5}, objective)
+    assert best["tau"] == (17.5 if expected == "dip" else 15.6)
+    assert len(calls) == (1 if left <= DelayMismatch.ESCAPE_SETTLED else 2)

@@ -40,38 +40,40 @@ def test_electro_optic_dynamical_noise_is_a_tie_between_the_noise_types():
     assert "cannot tell" in rep.summary()
 
 
-@pytest.mark.parametrize("truth, decided", [("dynamical_noise", False),
-                                             ("measurement_noise", True)])
+@pytest.mark.parametrize("seed, level, order, decided", [
+    (15, 0.03, ["dynamical_noise", "measurement_noise"], False),
+    (12, 0.08, ["measurement_noise", "dynamical_noise"], True),
+])
 def test_a_paired_preference_stands_only_when_records_of_the_runner_ups_world_differ(
-        truth, decided):
-    """Electro-optic oscillator, 6000 samples, record seed 12: on fresh realisations of the
-    record measurement noise leaves less than dynamical noise (the paired test separates
-    them) whichever noise made it.  With dynamical noise the truth, records simulated
-    with dynamical noise, both noises fitted anew, show as large a difference: the record
-    cannot tell, and the report says so rather than preferring the wrong one.  With
-    measurement noise (3 %) the truth the difference lies beyond them: decided."""
+        seed, level, order, decided):
+    """Electro-optic oscillator, 6000 samples, measurement noise the truth.  At 3 % (record
+    seed 15) the paired test on fresh realisations prefers dynamical noise (t 2.9 against
+    2.8), but records simulated with measurement noise, both noises fitted anew, show as
+    large a difference: the record cannot tell, and the report says so rather than
+    preferring the wrong one.  At 8 % (seed 12) the difference lies beyond them: decided.
+    (Before the dynamical noise was polished on every run, the paired test preferred
+    measurement noise on dynamically noisy records too; it now calls most 3 % records of
+    either kind a tie outright, see the first test.)"""
     eo = ElectroOpticOscillator()
-    if truth == "dynamical_noise":
-        real = eo.simulate(6000, sample_dt=0.25, random_state=12, dynamical_noise=0.1)
-    else:
-        x = eo.simulate(6000, sample_dt=0.25, random_state=12)
-        real = x + 0.03 * x.std() * np.random.default_rng(13).standard_normal(x.size)
+    x = eo.simulate(6000, sample_dt=0.25, random_state=seed)
+    real = x + level * x.std() * np.random.default_rng(seed + 1).standard_normal(x.size)
     rep = diagnose_gap(real, eo, sample_dt=0.25, effects=NOISES, random_state=5,
                        cross_validated=False, combine=False)
     tie = rep.tie
-    assert tie["effects"] == ["measurement_noise", "dynamical_noise"]
+    assert tie["effects"] == order
     assert abs(tie["t"]) > tie["critical"]  # the paired test alone would decide
     world = tie["runner_up_world"]
     assert len(world["runner_up"]) == len(world["better"]) == TIE_WORLD_RECORDS
     assert (world["difference"] > world["bound"]) is decided
     assert tie["decided"] is decided
     summary = rep.summary()
+    best, runner_up = order
     if decided:
-        assert "measurement_noise is preferred to dynamical_noise" in summary
-        assert "on records simulated with dynamical_noise as the truth" in summary
+        assert f"{best} is preferred to {runner_up}" in summary
+        assert f"on records simulated with {runner_up} as the truth" in summary
     else:
-        assert "cannot tell measurement_noise from dynamical_noise" in summary
-        assert "records simulated with dynamical_noise as the truth show" in summary
+        assert f"cannot tell {best} from {runner_up}" in summary
+        assert f"records simulated with {runner_up} as the truth show" in summary
 
 
 def test_no_tie_test_when_the_runner_up_does_not_explain_the_record():
