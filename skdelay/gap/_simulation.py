@@ -135,6 +135,9 @@ class DynamicalNoise(Effect):
     #: search's grid (factor 1.73 between points) and three Brent steps only bracket it.
     POLISH_STEP = 1.3
     POLISH_FINEST = 1.07
+    #: at most this many evaluations on every run (each costs three of the search's): a
+    #: minimum far from the search's best is the search's business, not the polish's
+    POLISH_EVALS = 12
 
     def search(self, problem, guess, objective):
         """The default search, then a pattern search in log intensity on the gap of every
@@ -156,15 +159,16 @@ class DynamicalNoise(Effect):
         d = best["dynamical_noise"]
         seen = {d: precise(best)}
         step = self.POLISH_STEP
-        while step >= self.POLISH_FINEST:
+        while step >= self.POLISH_FINEST and len(seen) <= self.POLISH_EVALS:
             for v in (d / step, d * step):
                 if lo <= v <= hi and v not in seen:
                     seen[v] = precise({"dynamical_noise": v})
             nearest = min((v for v in seen if max(v / d, d / v) <= step * 1.0001),
                           key=seen.get)
-            if nearest == d:
+            if seen[nearest] < seen[d]:  # strictly better: move (a tie never cycles)
+                d = nearest
+            else:
                 step = float(np.sqrt(step))
-            d = nearest
         return {"dynamical_noise": float(d)} if np.isfinite(seen[d]) else best
 
     def overrides(self, params, simulator):
