@@ -107,7 +107,7 @@ def _run(buf, n_hist, n_steps, lags, data, targets, tree, k, k_query, radius2, r
     nb_x = np.empty((k_query, nf))
     nb_y = np.empty(k_query)
     nb_w = np.zeros(k_query)
-    mu, g, rhs = fit_scratch(nf)
+    scratch = fit_scratch(nf, k_query)
     grad = np.empty(nf)
     n_clipped = 0
     for t in range(n_steps):
@@ -126,7 +126,7 @@ def _run(buf, n_hist, n_steps, lags, data, targets, tree, k, k_query, radius2, r
             nb_y[j] = targets[row]
             for f in range(nf):
                 nb_x[j, f] = data[row, f]
-        _, y = fit_neighbourhood(nb_x, nb_y, nb_w, v, ridge, order, 0.0, mu, g, rhs, grad)
+        _, y = fit_neighbourhood(nb_x, nb_y, nb_w, v, ridge, order, 0.0, scratch, grad)
         y += kicks[t]
         if not np.isfinite(y):
             return t, 2, n_clipped

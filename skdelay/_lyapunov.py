@@ -366,7 +366,7 @@ def _fit_rows(data, targets, V, pos, qidx, lo, k, theiler, ridge, out):
     nb_x = np.zeros((k, p))
     nb_y = np.zeros(k)
     nb_w = np.zeros(k)
-    mu, g, rhs = fit_scratch(p)
+    scratch = fit_scratch(p, k)
     for i in range(pos.shape[0]):
         row_q = lo + i
         used = 0
@@ -383,7 +383,7 @@ def _fit_rows(data, targets, V, pos, qidx, lo, k, theiler, ridge, out):
             used += 1
         for j in range(used, k):
             nb_w[j] = 0.0
-        fit_neighbourhood(nb_x, nb_y, nb_w, V[row_q], ridge, 1, 0.0, mu, g, rhs, out[row_q])
+        fit_neighbourhood(nb_x, nb_y, nb_w, V[row_q], ridge, 1, 0.0, scratch, out[row_q])
 
 
 def local_gradients(reg, V, query_index=None, *, n_jobs=None, progress=None, desc="Jacobians"):

@@ -62,22 +62,33 @@ def chunk_slices(n, per_row):
     return [slice(lo, min(n, lo + step)) for lo in range(0, n, step)]
 
 
-@njit(cache=True)
-def neighbourhood_moments(Vn, yn, w, mu, G, rhs):
+#: Floating-point licence of the moment sums: reassociation lets LLVM vectorise the dot
+#: products over the neighbours (and contract them into fused multiply-adds); NaN and
+#: infinity keep their IEEE semantics.  One fit (k = 30, one core, best of 7 x 10^5 calls,
+#: both versions in the same session): 3.6-3.8 -> 2.3-2.5 us at p = 10 and 1.34 -> 1.04-1.11
+#: us at p = 4, against the previous single pass that updated the whole triangle per
+#: neighbour.
+_SUMS = {"reassoc", "contract"}
+
+
+@njit(cache=True, fastmath=_SUMS)
+def neighbourhood_moments(Vn, yn, w, scratch):
     """Weighted mean and centred normal equations of one neighbourhood.
 
     ``Vn`` (k, p) neighbour vectors, ``yn`` (k,) targets, ``w`` (k,) weights
-    (0 = unused slot).  Fills ``mu`` (p,), the lower triangle and diagonal of
-    ``G`` (p, p) and ``rhs`` (p,); returns ``(ybar, weight_sum)``.
+    (``>= 0``; 0 = unused slot, whose row is ignored whatever it holds).
+    ``scratch`` = :func:`fit_scratch` ``(mu, G, rhs, D)``: fills ``mu`` (p,),
+    the lower triangle and diagonal of ``G`` (p, p) and ``rhs`` (p,); ``D``
+    (p + 1, >= k) receives the centred, ``sqrt(w)``-weighted neighbours
+    (transposed, so that every entry of ``G`` is one contiguous dot product).
+    Returns ``(ybar, weight_sum)``.
     """
+    mu, G, rhs, D = scratch
     k, p = Vn.shape
     ws = 0.0
     ybar = 0.0
     for a in range(p):
         mu[a] = 0.0
-        rhs[a] = 0.0
-        for b in range(p):
-            G[a, b] = 0.0
     for j in range(k):
         wj = w[j]
         if wj != 0.0:
@@ -93,14 +104,23 @@ def neighbourhood_moments(Vn, yn, w, mu, G, rhs):
     for j in range(k):
         wj = w[j]
         if wj == 0.0:
+            for a in range(p + 1):
+                D[a, j] = 0.0
             continue
-        dy = wj * (yn[j] - ybar)
+        sw = np.sqrt(wj)
         for a in range(p):
-            da = Vn[j, a] - mu[a]
-            rhs[a] += da * dy
-            wa = wj * da
-            for b in range(a + 1):
-                G[a, b] += wa * (Vn[j, b] - mu[b])
+            D[a, j] = sw * (Vn[j, a] - mu[a])
+        D[p, j] = sw * (yn[j] - ybar)
+    for a in range(p):
+        acc = 0.0
+        for j in range(k):
+            acc += D[a, j] * D[p, j]
+        rhs[a] = acc
+        for b in range(a + 1):
+            acc = 0.0
+            for j in range(k):
+                acc += D[a, j] * D[b, j]
+            G[a, b] = acc
     return ybar, ws
 
 
@@ -144,28 +164,31 @@ def ridge_solve(G, rhs, ridge, a_out):
 
 
 @njit(cache=True)
-def fit_scratch(p):
-    """``(mu, G, rhs)``: the scratch arrays of :func:`fit_neighbourhood` for ``p`` features."""
-    return np.empty(p), np.empty((p, p)), np.empty(p)
+def fit_scratch(p, k):
+    """``(mu, G, rhs, D)``: the scratch of :func:`fit_neighbourhood` for neighbourhoods of
+    at most ``k`` rows of ``p`` features."""
+    return np.empty(p), np.empty((p, p)), np.empty(p), np.empty((p + 1, k))
 
 
 @njit(cache=True)
 def neighbourhood_buffers(k, p):
-    """``(Vn, yn, w, vq, mu, G, rhs, a)``: one neighbourhood of ``k`` rows of ``p`` features,
+    """``(Vn, yn, w, vq, scratch, a)``: one neighbourhood of ``k`` rows of ``p`` features,
     its query, the scratch of :func:`fit_neighbourhood` and its gradient output."""
-    mu, G, rhs = fit_scratch(p)
-    return np.empty((k, p)), np.empty(k), np.empty(k), np.empty(p), mu, G, rhs, np.empty(p)
+    return (np.empty((k, p)), np.empty(k), np.empty(k), np.empty(p), fit_scratch(p, k),
+            np.empty(p))
 
 
 @njit(cache=True)
-def fit_neighbourhood(Vn, yn, w, vq, ridge, order, fallback, mu, G, rhs, a_out):
+def fit_neighbourhood(Vn, yn, w, vq, ridge, order, fallback, scratch, a_out):
     """One local affine fit and its forecast at ``vq``.
 
     Returns ``(b, pred)`` with the gradient in ``a_out`` (zeros for
-    ``order=0`` or an empty neighbourhood); ``mu``, ``G``, ``rhs`` are scratch.
+    ``order=0`` or an empty neighbourhood); ``scratch`` is :func:`fit_scratch`'s
+    (its ``mu`` holds the neighbourhood's mean afterwards).
     """
     p = vq.size
-    ybar, ws = neighbourhood_moments(Vn, yn, w, mu, G, rhs)
+    ybar, ws = neighbourhood_moments(Vn, yn, w, scratch)
+    mu, G, rhs, _ = scratch
     if ws == 0.0:
         for f in range(p):
             a_out[f] = 0.0
@@ -193,10 +216,10 @@ def fit_gathered(Vq, Vn, yn, w, ridge, order, fallback):
     A = np.zeros((n, p))
     b = np.empty(n)
     pred = np.empty(n)
-    mu, G, rhs = fit_scratch(p)
+    scratch = fit_scratch(p, Vn.shape[1])
     for i in range(n):
         b[i], pred[i] = fit_neighbourhood(Vn[i], yn[i], w[i], Vq[i], ridge, order, fallback,
-                                          mu, G, rhs, A[i])
+                                          scratch, A[i])
     return A, b, pred
 
 
@@ -212,7 +235,7 @@ def fit_from_series(s, q_t, nb_t, weight, cols, ridge, order, fallback):
     n, k = nb_t.shape
     p = cols.size
     pred = np.empty(n)
-    Vn, yn, w, vq, mu, G, rhs, a = neighbourhood_buffers(k, p)
+    Vn, yn, w, vq, scratch, a = neighbourhood_buffers(k, p)
     for i in range(n):
         for f in range(p):
             vq[f] = s[q_t[i] - cols[f]]
@@ -222,7 +245,7 @@ def fit_from_series(s, q_t, nb_t, weight, cols, ridge, order, fallback):
             yn[j] = s[t + 1]
             for f in range(p):
                 Vn[j, f] = s[t - cols[f]]
-        _, pred[i] = fit_neighbourhood(Vn, yn, w, vq, ridge, order, fallback, mu, G, rhs, a)
+        _, pred[i] = fit_neighbourhood(Vn, yn, w, vq, ridge, order, fallback, scratch, a)
     return pred
 
 

@@ -436,7 +436,7 @@ def scan_cells(s, q_t, lists, rk2, row_of, u_min, starts, m, k, radius2, width, 
         size *= 2
     table = np.full(size, -1, dtype=np.int64)
     touched = np.empty(2 * kk, dtype=np.int64)
-    Vn, yn, w, vq, mu, G, rhs, a = neighbourhood_buffers(width, p)
+    Vn, yn, w, vq, fit_buf, a = neighbourhood_buffers(width, p)
     n_max = is_db.size
     for i in range(n_q):
         q = q_t[i]
@@ -522,8 +522,7 @@ def scan_cells(s, q_t, lists, rk2, row_of, u_min, starts, m, k, radius2, width, 
                         used += 1
                 for c in range(used, width):
                     w[c] = 0.0
-                _, pred = fit_neighbourhood(Vn, yn, w, vq, ridge, order, fallback, mu, G, rhs,
-                                            a)
+                _, pred = fit_neighbourhood(Vn, yn, w, vq, ridge, order, fallback, fit_buf, a)
             e = pred - s[q + 1]
             sq[it, batch] += e * e
         for c in range(n1):
@@ -612,7 +611,7 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
     stack = np.empty(256, dtype=np.int64)
     stack_d = np.empty(256)
     width = 2 * m
-    Vn, yn, w, vq, mu, G, rhs, a = neighbourhood_buffers(k, width)
+    Vn, yn, w, vq, fit_buf, a = neighbourhood_buffers(k, width)
     for it in range(n_tau):
         c = starts[it]
         for r in range(n_db):
@@ -714,7 +713,7 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
                 for lag in range(m):
                     Vn[x, lag] = s[j - lag]
                     Vn[x, m + lag] = s[j - c - lag]
-            _, pred = fit_neighbourhood(Vn, yn, w, vq, ridge, order, fallback, mu, G, rhs, a)
+            _, pred = fit_neighbourhood(Vn, yn, w, vq, ridge, order, fallback, fit_buf, a)
             e = pred - s[q + 1]
             sq[it, (i * n_batches) // n_q] += e * e
         for x in range(k):

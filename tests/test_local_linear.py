@@ -121,6 +121,30 @@ def test_local_affine_empty_neighbourhood_uses_fallback():
     assert np.all(A == 0)
 
 
+
+def test_weighted_fit_ignores_whatever_unused_slots_hold():
+    # the moments are dot products over sqrt(w)-weighted, centred columns: general weights
+    # give the weighted least-squares map, and a slot of weight 0 is skipped even when it
+    # holds garbage (NaN, inf) from an earlier neighbourhood
+    rng = np.random.default_rng(4)
+    k, p, ridge = 25, 6, 1e-3
+    Vn = rng.normal(size=(1, k, p))
+    yn = np.sin(Vn[0] @ rng.normal(size=p))[None] + 0.1 * rng.normal(size=(1, k))
+    w = rng.uniform(0.2, 3.0, size=(1, k))
+    w[0, [3, 11]] = 0.0
+    Vn[0, 3], yn[0, 11], Vn[0, 11, 2] = np.nan, np.inf, -np.inf
+    vq = rng.normal(size=(1, p))
+    A, b, pred = fit_gathered(vq, Vn, yn, w, ridge, 1, 0.0)
+    used = w[0] > 0
+    N, t, ww = Vn[0][used], yn[0][used], w[0][used]
+    mu, tbar = ww @ N / ww.sum(), ww @ t / ww.sum()
+    D = N - mu
+    G = D.T @ (ww[:, None] * D)
+    a = np.linalg.solve(G + ridge * np.trace(G) / p * np.eye(p), D.T @ (ww * (t - tbar)))
+    np.testing.assert_allclose(A[0], a, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(b[0], tbar - a @ mu, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(pred[0], tbar + a @ (vq[0] - mu), rtol=1e-9, atol=1e-12)
+
 def test_n_jobs_and_chunking_do_not_change_results(smooth_data, monkeypatch):
     V, y = smooth_data
     ref = LocalLinearDelayMap(n_neighbors=9).fit(V, y).predict(V, query_index=np.arange(800))
