@@ -1,7 +1,8 @@
-"""False alarms and power of the gap diagnosis's range test (``skdelay.gap._range``).
+"""False alarms and power of the gap diagnosis's range and jump tests (``skdelay.gap._range``).
 
 A record counts as off when it leaves the range of the simulator runs more often than
-the runs leave each other's (Poisson tail below ``RANGE_ALPHA`` at the runs' rate bound).
+the runs leave each other's (Poisson tail below ``RANGE_ALPHA`` at the runs' rate bound);
+the jump test asks the same of the samples' jumps off the midpoint of their neighbours.
 This script draws, per system and sampling step, ``--reps`` records with no effect (fresh
 seeds 7.9e6 + 101 j, used nowhere else), runs the public ``diagnose_gap`` on each and
 counts how often the test fires (the right answer: never), then adds isolated spikes (the library's outliers at
@@ -38,7 +39,8 @@ def _test(real, system, dt, seed):
     rep = diagnose_gap(real, system, sample_dt=dt, random_state=seed % 9973, n_jobs=1,
                        effects=["outliers"], combine=False, cross_validated=False)
     s = rep.significance
-    return s["beyond_range_p"] < 1e-3, s["beyond_range"], s["significant"]
+    return (s["beyond_range_p"] < 1e-3, s["beyond_range"], s["significant"],
+            s["jumps_p"] < 1e-3, s["jumps"])
 
 
 def one(label, n, j):
@@ -47,13 +49,14 @@ def one(label, n, j):
     system = cls(**kw)
     seed = 7_900_000 + 101 * j
     real = system.simulate(n, sample_dt=dt, random_state=seed)
-    fires, count, significant = _test(real, system, dt, seed)
+    fires, count, significant, jfires, jcount = _test(real, system, dt, seed)
     size = 2.0 + 4.0 * ((j * 0.618) % 1.0)
     spiked = get_effect("outliers").apply(real, {"rate": 0.002, "size": size},
                                           sample_dt=dt, random_state=seed + 99)
-    power, _, found = _test(spiked, system, dt, seed)
+    power, _, found, jpower, _ = _test(spiked, system, dt, seed)
     return {"case": label, "fires": fires, "count": count, "significant": significant,
-            "power": power, "found": found, "size": size}
+            "power": power, "found": found, "size": size, "jfires": jfires, "jcount": jcount,
+            "jpower": jpower}
 
 
 def main():
@@ -66,17 +69,20 @@ def main():
     rows = Parallel(n_jobs=args.n_jobs)(delayed(one)(c, args.n, j)
                                         for c in CASES for j in range(args.reps))
     print(f"# n = {args.n}, {args.reps} records per case; spikes: rate 0.002, sizes 2-6 std; "
-          "range test at p < 1e-3 (RANGE_ALPHA)")
-    print("| case | range test fires (no effect) | largest count | gap significant (no "
-          "effect) | range test fires (spikes) | significant (spikes) |")
-    print("|---|---|---|---|---|---|")
+          "range and jump tests at p < 1e-3 (RANGE_ALPHA)")
+    print("| case | range test fires (no effect) | largest count | jump test fires (no "
+          "effect) | largest jump count | gap significant (no effect) | range test fires "
+          "(spikes) | jump test fires (spikes) | significant (spikes) |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for c in CASES:
         r = [x for x in rows if x["case"] == c]
-        print(f"| {c} | {sum(x['fires'] for x in r)}/{len(r)} | {max(x['count'] for x in r)} "
-              f"| {sum(x['significant'] for x in r)}/{len(r)} | "
-              f"{sum(x['power'] for x in r)}/{len(r)} | {sum(x['found'] for x in r)}/{len(r)} |")
-    total = sum(x["fires"] for x in rows)
-    print(f"\nfalse alarms {total} of {len(rows)}; {time.perf_counter() - t0:.0f} s")
+        n = len(r)
+        print(f"| {c} | {sum(x['fires'] for x in r)}/{n} | {max(x['count'] for x in r)} | "
+              f"{sum(x['jfires'] for x in r)}/{n} | {max(x['jcount'] for x in r)} | "
+              f"{sum(x['significant'] for x in r)}/{n} | {sum(x['power'] for x in r)}/{n} | "
+              f"{sum(x['jpower'] for x in r)}/{n} | {sum(x['found'] for x in r)}/{n} |")
+    print(f"\nfalse alarms: range test {sum(x['fires'] for x in rows)}, jump test "
+          f"{sum(x['jfires'] for x in rows)} of {len(rows)}; {time.perf_counter() - t0:.0f} s")
 
 
 if __name__ == "__main__":

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from skdelay.gap import diagnose_gap, get_effect
-from skdelay.gap._range import RANGE_ALPHA, excursions, range_test
+from skdelay.gap._range import RANGE_ALPHA, excursions, jump_test, jumps, range_test
 from skdelay.systems import Ikeda, MackeyGlass
 
 
@@ -32,6 +32,23 @@ def test_a_clean_record_stays_within_the_runs_and_spikes_leave_them():
     assert hit["rate_bound"] == pytest.approx(stats.chi2.ppf(0.95, 2 * (s + 1)) / 12)
 
 
+def test_a_spike_is_one_jump_excursion_and_smooth_runs_have_none():
+    x = np.zeros(9)
+    x[4] = 3.0
+    np.testing.assert_allclose(jumps(x), [0, 0, -1.5, 3.0, -1.5, 0, 0])
+    assert excursions(jumps(x), -1.0, 1.0) == 1  # the spike and its two neighbours
+    ik = Ikeda()
+    runs = [ik.simulate(6000, sample_dt=0.5, random_state=s) for s in range(931, 937)]
+    clean = ik.simulate(6000, sample_dt=0.5, random_state=941)
+    assert not jump_test(clean, runs)["off"]
+    # 3.5-std spikes (0.3 %, ~18 of them): most jump off their neighbours farther than any
+    # run's sample does
+    spiked = get_effect("outliers").apply(clean, {"rate": 0.003, "size": 3.5}, sample_dt=0.5,
+                                          random_state=942)
+    hit = jump_test(spiked, runs)
+    assert hit["off"] and hit["count"] >= 10 and sum(hit["null_counts"]) <= 2
+
+
 def test_too_few_runs_decide_nothing():
     x = np.random.default_rng(0).standard_normal(100)
     assert range_test(x, [x])["off"] is False
@@ -44,9 +61,9 @@ def test_spikes_under_the_gap_threshold_are_found_as_outliers():
     of the runs' extremes, 0.7-0.8 std here), against a rate of about one in the runs.
 
     The price of that widening: spikes of 3.5 std at 0.3 % on this record (this test
-    before stop 26) now leave it 5 times (p = 1.3e-3, not found), and of three draws of
-    the 5-std spikes only this one is found while the gap stays under its threshold; the
-    power over 70 records is in benchmarks/out/range_false_alarms.txt."""
+    before stop 26) leave it 5 times (p = 1.3e-3); they are found by their jumps
+    (:func:`test_spikes_inside_the_range_are_found_by_their_jumps`).  The power over 70
+    records is in benchmarks/out/range_false_alarms.txt."""
     ik = Ikeda()
     x = ik.simulate(6000, sample_dt=0.5, random_state=921)
     real = get_effect("outliers").apply(x, {"rate": 0.002, "size": 5.0}, sample_dt=0.5,
@@ -62,6 +79,26 @@ def test_spikes_under_the_gap_threshold_are_found_as_outliers():
     # held-out half (< MIN_SHRINK), so nothing is named -- but no wrong effect either
     assert rep.best_effect in (None, "outliers"), rep.effects[["effect", "shrink"]]
     assert rep.effects.iloc[0]["effect"] == "outliers"
+
+
+def test_spikes_inside_the_range_are_found_by_their_jumps():
+    """The record of the test above with spikes of 3.5 std at 0.3 %: 5 excursions beyond the
+    runs' range (p = 1.3e-3 > RANGE_ALPHA) and a gap of 5.0 under its threshold of 6.3 read
+    "no gap" before the jump test; 16 samples jump off both neighbours farther than any run
+    does (none of the runs against the others)."""
+    ik = Ikeda()
+    x = ik.simulate(6000, sample_dt=0.5, random_state=921)
+    real = get_effect("outliers").apply(x, {"rate": 0.003, "size": 3.5}, sample_dt=0.5,
+                                        random_state=922)
+    rep = diagnose_gap(real, ik, sample_dt=0.5, random_state=923, n_jobs=2,
+                       effects=["outliers", "measurement_noise", "clipping"])
+    s = rep.significance
+    assert s["gap_before"] < s["threshold"] and s["beyond_range_p"] > RANGE_ALPHA
+    assert s["jumps_p"] < RANGE_ALPHA and s["jumps"] >= 10 and s["significant"]
+    assert "jumps off both neighbours" in rep.headline()
+    assert rep.best_effect == "outliers" and rep.explained == "fully"
+    fit = rep.effects.set_index("effect").loc["outliers", "params"]
+    assert 0.5 * 0.003 < fit["rate"] < 1.5 * 0.003 and 2.5 < fit["size"] < 5.0
 
 
 @pytest.mark.parametrize("j", [1, 2])

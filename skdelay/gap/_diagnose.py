@@ -24,7 +24,7 @@ from ._fit import fit_effect, initial_params
 from ._lines import F_ALPHA, without_lines
 from ._observation import Outliers
 from ._problem import GapProblem
-from ._range import range_test
+from ._range import jump_test, range_test
 from ._report import GapReport
 from ._signature import mean_std
 from ._units import parse_sample_dt
@@ -147,7 +147,9 @@ def significance(problem):
     (:func:`skdelay.gap._where.dip_shift_significant`: at least ``DIP_MIN_SHIFT``
     samples and ``DIP_Z`` combined standard errors apart), or when it leaves the runs'
     range more often than they leave each other's (:func:`skdelay.gap._range.range_test`:
-    isolated spikes).  The thresholds were calibrated on no-effect controls
+    isolated spikes), or its jumps off the midpoint of their neighbours leave the runs'
+    jump range more often than theirs do (:func:`skdelay.gap._range.jump_test`: spikes
+    within the range of values).  The thresholds were calibrated on no-effect controls
     (benchmarks/gap_withheld.py, benchmarks/dip_false_alarms.py).
 
     The dip is a test of its own because a delay mismatch of one or two
@@ -164,17 +166,19 @@ def significance(problem):
     # a spectral line passed its own ensemble-calibrated test (skdelay.gap._lines)
     lines = len(problem.lines)
     dip_shift = dip_shift_significant(problem)
-    # spikes beyond the runs' range, too few to move a histogram bin (skdelay.gap._range)
+    # spikes beyond the runs' range, too few to move a histogram bin, and spikes off both
+    # neighbours by more than the runs ever are (skdelay.gap._range)
     beyond = range_test(problem.real, problem.base)
+    jumps = jump_test(problem.real, problem.base)
+    other = gap > threshold or max_z > Z_LOCAL or lines or beyond["off"] or jumps["off"]
     return {"gap_before": gap, "null_median": level, "null_max": float(np.max(null)),
             "threshold": threshold, "max_z": max_z, "z_local": Z_LOCAL, "lines": lines,
             "dip_shift": dip_shift, "beyond_range": beyond["count"],
-            "beyond_range_p": beyond["p_value"],
-            "significant": bool(gap > threshold or max_z > Z_LOCAL or lines or dip_shift
-                                or beyond["off"]),
+            "beyond_range_p": beyond["p_value"], "jumps": jumps["count"],
+            "jumps_p": jumps["p_value"],
+            "significant": bool(other or dip_shift),
             # the dip is the only discrepancy beyond chance (see _dip_evidence_first)
-            "dip_only": bool(dip_shift and not (gap > threshold or max_z > Z_LOCAL or lines
-                                                or beyond["off"]))}
+            "dip_only": bool(dip_shift and not other)}
 
 
 def _peak_frequency(x, sample_dt, nperseg=4096):

@@ -226,6 +226,10 @@ class GapReport:
         elif s.get("beyond_range_p", 1.0) < RANGE_ALPHA:
             what = (f"the record leaves the simulator runs' range {s['beyond_range']} times "
                     f"(isolated spikes; chance {s['beyond_range_p']:.1g} at the runs' own rate)")
+        elif s.get("jumps_p", 1.0) < RANGE_ALPHA:
+            what = (f"{s['jumps']} times a sample jumps off both neighbours farther than the simulator "
+                    f"runs ever do (isolated spikes; chance {s['jumps_p']:.1g} at the runs' own "
+                    "rate)")
         else:
             return ""
         return (f", significant although the gap {self.gap_before:.3g} is within the no-gap "
