@@ -54,6 +54,16 @@ def test_too_few_runs_decide_nothing():
     assert range_test(x, [x])["off"] is False
 
 
+def _spiked_ikeda(rate, size):
+    """The diagnosis of one Ikeda record (step 0.5, 6000 samples) with spikes added."""
+    ik = Ikeda()
+    x = ik.simulate(6000, sample_dt=0.5, random_state=921)
+    real = get_effect("outliers").apply(x, {"rate": rate, "size": size}, sample_dt=0.5,
+                                        random_state=922)
+    return diagnose_gap(real, ik, sample_dt=0.5, random_state=923, n_jobs=2,
+                        effects=["outliers", "measurement_noise", "clipping"])
+
+
 def test_spikes_under_the_gap_threshold_are_found_as_outliers():
     """Ikeda (step 0.5, 6000 samples) with spikes of 5 std at 0.2 %: too few to move a
     histogram bin (here the gap is 5.5 against a threshold of 6.3, no bin beyond 4.6
@@ -64,12 +74,7 @@ def test_spikes_under_the_gap_threshold_are_found_as_outliers():
     before stop 26) leave it 5 times (p = 1.3e-3); they are found by their jumps
     (:func:`test_spikes_inside_the_range_are_found_by_their_jumps`).  The power over 70
     records is in benchmarks/out/range_false_alarms.txt."""
-    ik = Ikeda()
-    x = ik.simulate(6000, sample_dt=0.5, random_state=921)
-    real = get_effect("outliers").apply(x, {"rate": 0.002, "size": 5.0}, sample_dt=0.5,
-                                        random_state=922)
-    rep = diagnose_gap(real, ik, sample_dt=0.5, random_state=923, n_jobs=2,
-                       effects=["outliers", "measurement_noise", "clipping"])
+    rep = _spiked_ikeda(rate=0.002, size=5.0)
     s = rep.significance
     assert s["gap_before"] < s["threshold"] and s["max_z"] < s["z_local"]
     assert not s["lines"] and not s["dip_shift"]
@@ -86,12 +91,7 @@ def test_spikes_inside_the_range_are_found_by_their_jumps():
     runs' range (p = 1.3e-3 > RANGE_ALPHA) and a gap of 5.0 under its threshold of 6.3 read
     "no gap" before the jump test; 16 samples jump off both neighbours farther than any run
     does (none of the runs against the others)."""
-    ik = Ikeda()
-    x = ik.simulate(6000, sample_dt=0.5, random_state=921)
-    real = get_effect("outliers").apply(x, {"rate": 0.003, "size": 3.5}, sample_dt=0.5,
-                                        random_state=922)
-    rep = diagnose_gap(real, ik, sample_dt=0.5, random_state=923, n_jobs=2,
-                       effects=["outliers", "measurement_noise", "clipping"])
+    rep = _spiked_ikeda(rate=0.003, size=3.5)
     s = rep.significance
     assert s["gap_before"] < s["threshold"] and s["beyond_range_p"] > RANGE_ALPHA
     assert s["jumps_p"] < RANGE_ALPHA and s["jumps"] >= 10 and s["significant"]
