@@ -64,10 +64,11 @@ def chunk_slices(n, per_row):
 
 #: Floating-point licence of the moment sums: reassociation lets LLVM vectorise the dot
 #: products over the neighbours (and contract them into fused multiply-adds); NaN and
-#: infinity keep their IEEE semantics.  One fit (k = 30, one core, best of 7 x 10^5 calls,
-#: both versions in the same session): 3.6-3.8 -> 2.3-2.5 us at p = 10 and 1.34 -> 1.04-1.11
-#: us at p = 4, against the previous single pass that updated the whole triangle per
-#: neighbour.
+#: infinity keep their IEEE semantics.  Against the previous single pass that updated the
+#: whole triangle per neighbour, 50 exponents of the tau = 400 laser model (k = 100,
+#: p = 10) took 6.51 s instead of 7.47 s with one worker and 3.61 s instead of 4.83 s with
+#: two, same exponents (``python benchmarks/lyapunov_speed.py --baseline b52e4ec``,
+#: benchmarks/out/lyapunov_speed.txt).
 _SUMS = {"reassoc", "contract"}
 
 
