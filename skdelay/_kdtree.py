@@ -111,7 +111,10 @@ def build_tree(data, leaf_size=LEAF_SIZE):
 # inlined, and indexed by node rather than handed row views: it runs at every node a
 # query visits, where a call with two fresh views cost more than the few subtractions
 @njit(cache=True, inline="always")
-def _box_dist2(q, box_lo, box_hi, node):
+def box_dist2(q, box_lo, box_hi, node):
+    """Squared distance of ``q`` to the bounding box of ``node`` (rows of ``box_lo`` and
+    ``box_hi``): the pruning bound of every search over these trees, here and in
+    :mod:`skdelay._scan`."""
     s = 0.0
     for j in range(q.size):
         if q[j] < box_lo[node, j]:
@@ -121,6 +124,22 @@ def _box_dist2(q, box_lo, box_hi, node):
             t = q[j] - box_hi[node, j]
             s += t * t
     return s
+
+
+@njit(cache=True, inline="always")
+def insert_sorted(best_d, best_i, k, d, ident):
+    """Insert ``(d, ident)`` into the ascending ``best_d[:k]`` (and ``best_i``), dropping the
+    last; the caller has checked ``d < best_d[k - 1]``.
+
+    A shift rather than a heap: the callers read the neighbours nearest first.
+    """
+    pos = k - 1
+    while pos > 0 and best_d[pos - 1] > d:
+        best_d[pos] = best_d[pos - 1]
+        best_i[pos] = best_i[pos - 1]
+        pos -= 1
+    best_d[pos] = d
+    best_i[pos] = ident
 
 
 @njit(cache=True)
@@ -139,7 +158,7 @@ def query_knn(data, tree, q, k, best_d, best_i, stack):
     while sp > 0:
         sp -= 1
         node = stack[sp]
-        if _box_dist2(q, box_lo, box_hi, node) >= best_d[k - 1]:
+        if box_dist2(q, box_lo, box_hi, node) >= best_d[k - 1]:
             continue
         if left[node] < 0:
             for p in range(start[node], stop[node]):
@@ -149,17 +168,11 @@ def query_knn(data, tree, q, k, best_d, best_i, stack):
                     t = data[row, j] - q[j]
                     s += t * t
                 if s < best_d[k - 1]:
-                    pos = k - 1
-                    while pos > 0 and best_d[pos - 1] > s:
-                        best_d[pos] = best_d[pos - 1]
-                        best_i[pos] = best_i[pos - 1]
-                        pos -= 1
-                    best_d[pos] = s
-                    best_i[pos] = row
+                    insert_sorted(best_d, best_i, k, s, row)
             continue
         a, b = left[node], right[node]
-        da = _box_dist2(q, box_lo, box_hi, a)
-        db = _box_dist2(q, box_lo, box_hi, b)
+        da = box_dist2(q, box_lo, box_hi, a)
+        db = box_dist2(q, box_lo, box_hi, b)
         if da <= db:  # push the farther child first so the nearer is searched first
             stack[sp] = b
             stack[sp + 1] = a
@@ -192,7 +205,7 @@ def _knn_seeded(sdata, sids, tree, q, k, t, theiler, bound, best_d, best_i, stac
     while sp > 0:
         sp -= 1
         node = stack[sp]
-        bd = _box_dist2(q, box_lo, box_hi, node)
+        bd = box_dist2(q, box_lo, box_hi, node)
         if bd >= best_d[k - 1] or bd > bound:
             continue
         if left[node] < 0:
@@ -206,19 +219,13 @@ def _knn_seeded(sdata, sids, tree, q, k, t, theiler, bound, best_d, best_i, stac
                 ident = sids[p]
                 if theiler >= 0 and abs(ident - t) <= theiler:
                     continue
-                pos = k - 1
-                while pos > 0 and best_d[pos - 1] > s:
-                    best_d[pos] = best_d[pos - 1]
-                    best_i[pos] = best_i[pos - 1]
-                    pos -= 1
-                best_d[pos] = s
-                best_i[pos] = ident
+                insert_sorted(best_d, best_i, k, s, ident)
                 if found < k:
                     found += 1
             continue
         a, b = left[node], right[node]
-        da = _box_dist2(q, box_lo, box_hi, a)
-        db = _box_dist2(q, box_lo, box_hi, b)
+        da = box_dist2(q, box_lo, box_hi, a)
+        db = box_dist2(q, box_lo, box_hi, b)
         if da <= db:
             stack[sp] = b
             stack[sp + 1] = a

@@ -101,7 +101,13 @@ from scipy.spatial import cKDTree
 from skdelay._checks import check_positive_int, check_random_state
 from skdelay._dips import locate_dips
 from skdelay._embedding import second_window_start, two_window_columns
-from skdelay._kdtree import build_tree, select_kth, window_knn_lists, window_knn_run
+from skdelay._kdtree import (
+    box_dist2,
+    build_tree,
+    select_kth,
+    window_knn_lists,
+    window_knn_run,
+)
 from skdelay._neighbours import (
     RADIUS_CAP,
     chunk_slices,
@@ -530,21 +536,6 @@ def scan_cells(s, q_t, lists, rk2, row_of, u_min, starts, m, k, radius2, width, 
 
 
 @njit(cache=True, inline="always")
-def _node_dist2(q, box_lo, box_hi, node):
-    """Squared distance of ``q`` to the box of ``node`` (rows of ``box_lo``/``box_hi``)."""
-    acc = 0.0
-    for f in range(q.size):
-        lo = box_lo[node, f]
-        if q[f] < lo:
-            acc += (lo - q[f]) * (lo - q[f])
-        else:
-            hi = box_hi[node, f]
-            if q[f] > hi:
-                acc += (q[f] - hi) * (q[f] - hi)
-    return acc
-
-
-@njit(cache=True, inline="always")
 def _sift_down(hd, hj, pos):
     """Restore the max-heap ``(hd, hj)`` below ``pos``."""
     k = hd.size
@@ -667,8 +658,8 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
                 node = stack[sp]
                 if left[node] >= 0:
                     lc, rc = left[node], right[node]
-                    dl = _node_dist2(qp, box_lo, box_hi, lc)
-                    dr = _node_dist2(qp, box_lo, box_hi, rc)
+                    dl = box_dist2(qp, box_lo, box_hi, lc)
+                    dr = box_dist2(qp, box_lo, box_hi, rc)
                     if dl > dr:
                         lc, rc, dl, dr = rc, lc, dr, dl
                     if dr < hd[0]:
