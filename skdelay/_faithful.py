@@ -253,6 +253,8 @@ def collapse_step(run, data, *, window, noise=0.0):
         return None
     # beyond one window (the decorrelation scale of a delay loop) up to a quarter record
     lo, hi = window, max(window + 1, tail.size // 4)
+    if hi >= tail.size:  # a run of two windows has no lags beyond one window to revive at
+        return None
     signal = max(1.0 - noise ** 2 / max(float(np.var(data)), 1e-300), 1e-3)
     data_revival = _max_revival(data[:4 * tail.size], lo, hi) / signal
     if _max_revival(tail, lo, hi) >= PERIODIC_ACF > data_revival:

@@ -109,6 +109,10 @@ def test_collapse_detector_fixed_point_and_periodic_orbit(mg17):
     cycle = np.sin(2 * np.pi * np.arange(8000) / 50.0) * data.std() + data.mean()
     assert collapse_step(cycle, data, window=200) == (4000, "periodic orbit")
     assert collapse_step(data[10_000:18_000], data, window=200) is None
+    # a run of just two windows (a quick run at a long delay) has no lag beyond one window
+    # in its second half: no periodic verdict, and no error
+    assert collapse_step(data[10_000:10_400], data, window=200) is None
+    assert collapse_step(cycle[:400], data, window=200) is None
 
 
 def test_faithful_at_m_implies_faithful_from_m_on(mg17):
