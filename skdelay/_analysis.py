@@ -23,7 +23,7 @@ from scipy.signal import find_peaks
 
 from ._checks import check_positive_int, check_series, resolve_sample_dt
 from ._correlation import autocorrelation, mutual_information, revival_peak
-from ._dips import locate_dips
+from ._dips import DIP_ALPHA, locate_dips
 from ._embedding import required_lags
 from ._faithful import DEFAULT_RUN, minimal_embedding
 from ._io import atomic_directory, write_json
@@ -31,7 +31,7 @@ from ._iterate import progress_bars
 from ._model import ModelOptions
 from ._model_selection import select_model_options
 from ._report import write_analysis_report
-from ._sampling import sampling_step
+from ._sampling import MAX_STEP, sampling_step, white_noise_level
 from ._selection import forecast_error_curve
 
 __all__ = [
@@ -43,6 +43,16 @@ __all__ = [
     "strongest_revival",
 ]
 
+#: Coarser steps tried, each twice the last, when the step chosen from the data
+#: (:func:`~skdelay._sampling.sampling_step`) shows no significant dip in a record that is
+#: smooth at its sampling step.  The second-difference rule behind that step misses when
+#: the structure function is not quadratic over its first lags although the record is
+#: smooth: the Ikeda equation sampled 500 times per delay (0.5 % noise, 4e4 samples) got
+#: step 1, where no m had a significant dip (z 0.6-1.4), nor at step 2 (z 2.5-3.1), while
+#: steps 5 and 10 gave z 7-11 with the dip within half a coarse sample of the delay.  Each
+#: rung ``r`` tests its dips at ``DIP_ALPHA / 2 ** r``, so the whole ladder keeps a
+#: family-wise false-dip rate below ``2 * DIP_ALPHA``.
+STEP_LADDER = 4
 #: Window lengths of the paper's analysis (its m_d was at most 5).
 DEFAULT_M = (2, 3, 4, 5)
 #: Largest delay scanned by default (the paper's longest delay, 400 samples, fits).
@@ -201,6 +211,9 @@ class AnalysisResult:
     step : int
         Sampling step applied to the record (1: none; see
         :func:`~skdelay._sampling.sampling_step`).
+    steps_tried : tuple of int
+        Every step whose scan was run: the chosen one and, when it showed no
+        significant dip, the coarser ones of :data:`STEP_LADDER`.
     model_selection : pandas.DataFrame or None
         The cross-validation table behind the model settings (``select_model``).
     time_unit : str
@@ -243,6 +256,7 @@ class AnalysisResult:
     runs: dict = field(repr=False)
     minimal_m_reason: str = ""
     step: int = 1
+    steps_tried: tuple = (1,)
     model_selection: pd.DataFrame | None = None
     time_unit: str = "time unit"
     options: dict = field(default_factory=dict)
@@ -281,6 +295,7 @@ class AnalysisResult:
             "minimal_m": self.minimal_m,
             "minimal_m_reason": self.minimal_m_reason or None,
             "sampling_step": self.step,
+            "steps_tried": list(self.steps_tried),
         }
 
     def to_dict(self):
@@ -303,6 +318,18 @@ class AnalysisResult:
             "timings_s": {k: round(v, 2) for k, v in self.timings.items()},
         }
 
+    def _ladder_clause(self):
+        """What the coarser steps of :data:`STEP_LADDER` showed, if they were tried."""
+        tried = list(self.steps_tried)
+        if len(tried) < 2:
+            return ""
+        if self.step != tried[0]:
+            failed = ", ".join(map(str, tried[:-1]))
+            return (f"; no significant dip at step(s) {failed}, so coarser steps were tried "
+                    f"and step {self.step} shows one")
+        return (f"; no significant dip at step {tried[0]} nor at the coarser "
+                f"{', '.join(map(str, tried[1:]))}")
+
     def summary(self):
         """A few lines for the terminal."""
         r = self.summary_row()
@@ -311,7 +338,8 @@ class AnalysisResult:
             f"{self.sample_dt / self.step:g}"
             + ("" if self.step == 1 else
                f"; oversampled: every {self.step}-th sample analysed (delays below in those "
-               f"coarse samples, the model's delay {r['delay']} in the record's samples)"),
+               f"coarse samples, the model's delay {r['delay']} in the record's samples)")
+            + self._ladder_clause(),
             "delay per m (samples): " + ", ".join(
                 f"m={m}: {row.delay:.1f} +- {row.delay_error:.1f}"
                 + ("" if row.significant else " (no significant dip)")
@@ -413,8 +441,9 @@ class AnalysisOptions:
     step : int
         Analyse every ``step``-th sample; None chooses it from the data
         (:func:`~skdelay._sampling.sampling_step`: 1 unless the record is so
-        oversampled that its second difference drowns in measurement noise).
-        Delay ranges (``tau_min``, ``tau_max``) are in the original samples.
+        oversampled that its second difference drowns in measurement noise; when
+        that step shows no significant dip, coarser ones are tried, see
+        :data:`STEP_LADDER`).  Delay ranges (``tau_min``, ``tau_max``) are in the original samples.
     select_model : bool
         Choose the models' neighbourhood size and ridge by time-series
         cross-validation (:func:`~skdelay._model_selection.select_model_options`)
@@ -555,43 +584,69 @@ def analyze_series(series, options=None, *, quick=False, random_state=0, n_jobs=
     opts = _options_from(options, quick, dict(overrides))
     opts = replace(opts, sample_dt=resolve_sample_dt(series, opts.sample_dt))
     raw = check_series(series, name="series")
-    step = sampling_step(raw) if opts.step is None else check_positive_int(opts.step,
-                                                                            name="step")
-    s = raw[::step]
-    if step > 1:
-        say(f"oversampled record: analysing every {step}-th sample")
-    checked = check_options(
-        s, m=opts.m, tau_min=max(1, opts.tau_min // step),
-        tau_max=None if opts.tau_max is None else -(-opts.tau_max // step),
-        sample_dt=opts.sample_dt * step, n_queries=opts.n_queries)
-    opts = replace(opts, **checked, step=step).resolved(s.size)
-    ms, dt = opts.m, opts.sample_dt
-    taus = range(opts.tau_min, opts.tau_max + 1)
-    n = s.size
-    if n_jobs is None:  # worker start-up only pays off for big scans
-        n_jobs = -1 if len(ms) * len(taus) * opts.n_queries > PARALLEL_FORECASTS else 1
+    chosen = opts.step is None
+    step = sampling_step(raw) if chosen else check_positive_int(opts.step, name="step")
+    base, requested, bar = opts, n_jobs, progress is not None and verbose > 0
     timings, t0 = {}, time.perf_counter()
 
+    def scan_at(step, alpha):
+        """The record at ``step``: (series, options, n_jobs, curve, dips)."""
+        s = raw[::step]
+        checked = check_options(
+            s, m=base.m, tau_min=max(1, base.tau_min // step),
+            tau_max=None if base.tau_max is None else -(-base.tau_max // step),
+            sample_dt=base.sample_dt * step, n_queries=base.n_queries)
+        o = replace(base, **checked, step=step).resolved(s.size)
+        taus = range(o.tau_min, o.tau_max + 1)
+        jobs = requested
+        if jobs is None:  # worker start-up only pays off for big scans
+            jobs = -1 if len(o.m) * len(taus) * o.n_queries > PARALLEL_FORECASTS else 1
+        if step > 1:
+            say(f"oversampled record: analysing every {step}-th sample")
+        say(f"delay scan: m = {', '.join(map(str, o.m))}, tau = {taus.start}..{taus.stop - 1} "
+            f"({len(o.m) * len(taus)} cells, {o.n_queries} forecasts each)")
+        # the bar replaces joblib's "Done k out of n" lines, which broke it into pieces
+        curve = forecast_error_curve(s, m=o.m, tau=taus, n_queries=o.n_queries,
+                                     refine=o.refine, progress=bar, random_state=random_state,
+                                     n_jobs=jobs, verbose=0 if bar else verbose)
+        return s, o, jobs, curve, locate_dips(curve, alpha=alpha)
+
+    t1 = time.perf_counter()
+    s, opts, n_jobs, curve, dips = scan_at(step, DIP_ALPHA)
+    tried = [step]
+    # no dip at the chosen step of a record that is smooth at its sampling step (its
+    # white-noise floor is resolved): the delayed window's share of the next value may
+    # still drown in the noise, so coarser steps are tried (see STEP_LADDER)
+    if chosen and not dips["significant"].any() and white_noise_level(raw)[1]:
+        for rung in range(1, STEP_LADDER + 1):
+            coarser = step * 2 ** rung
+            if coarser > MAX_STEP:
+                break
+            try:
+                found = scan_at(coarser, DIP_ALPHA / 2 ** rung)
+            except ValueError:  # the coarser record is too short for the scan
+                break
+            tried.append(coarser)
+            if found[4]["significant"].any():
+                s, opts, n_jobs, curve, dips = found
+                break
+        if opts.step == step and len(tried) > 1:
+            say(f"no significant dip at steps {', '.join(map(str, tried))}: the scan at "
+                f"step {step} stands")
+    step = opts.step
+    dips["tau_used"] = dips["tau_best"]
+    timings["delay_scan"] = time.perf_counter() - t1
+    ms, dt, n = opts.m, opts.sample_dt, s.size
+
     say("autocorrelation and mutual information")
+    t_c = time.perf_counter()
     max_lag = int(min(n - 1, max(opts.tau_max + MIN_TAU_MAX, SCAN_REACH * opts.tau_max)))
     acf = autocorrelation(s, max_lag)
     mi = mutual_information(s, max_lag)
     revivals = {"acf": acf, "mi": mi, "acf_revival": _revival(revival_peak, acf),
                 "mi_revival": _revival(revival_peak, mi),
                 "acf_strongest": strongest_revival(acf), "mi_strongest": strongest_revival(mi)}
-    timings["correlations"] = time.perf_counter() - t0
-
-    say(f"delay scan: m = {', '.join(map(str, ms))}, tau = {taus.start}..{taus.stop - 1} "
-        f"({len(ms) * len(taus)} cells, {opts.n_queries} forecasts each)")
-    t1 = time.perf_counter()
-    bar = progress is not None and verbose > 0
-    # the bar replaces joblib's "Done k out of n" lines, which broke it into pieces
-    curve = forecast_error_curve(s, m=ms, tau=taus, n_queries=opts.n_queries,
-                                 refine=opts.refine, progress=bar, random_state=random_state,
-                                 n_jobs=n_jobs, verbose=0 if bar else verbose)
-    dips = locate_dips(curve)
-    dips["tau_used"] = dips["tau_best"]
-    timings["delay_scan"] = time.perf_counter() - t1
+    timings["correlations"] = time.perf_counter() - t_c
 
     m_all = list(range(ms[0], ms[-1] + 1))
     tau_of = {mm: int(dips.loc[mm if mm in dips.index else ms[-1], "tau_used"]) for mm in m_all}
@@ -629,6 +684,7 @@ def analyze_series(series, options=None, *, quick=False, random_state=0, n_jobs=
         name=name, sample_dt=dt, series=s, revivals=revivals, forecast_error=curve,
         delays=dips, m=ms[-1], spectra=faithful.spectra, validation=faithful.table,
         minimal_m=faithful.m_d, minimal_m_reason=faithful.reason, step=step,
+        steps_tried=tuple(tried),
         model_selection=None if selection is None else selection.table,
         time_unit=opts.time_unit,
         runs={mm: r[0] for mm, r in faithful.runs.items() if r}, options=opts.to_dict(),

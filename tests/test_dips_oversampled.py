@@ -18,7 +18,7 @@ from numba import njit
 from skdelay import DelaySelectorCV, NoDipWarning, analyze_series, lagged_windows
 from skdelay._embedding import required_lags
 from skdelay._sampling import sampling_step
-from skdelay.systems import measure
+from skdelay.systems import Ikeda, measure
 
 PER_DELAY = 50
 
@@ -74,3 +74,45 @@ def test_automatic_step_finds_the_delay_within_one_coarse_sample(delayed_only):
     centres = good["delay"].to_numpy() * step
     assert np.all(np.abs(centres - PER_DELAY) <= step), centres
     assert "oversampled" in res.summary()
+
+
+@pytest.fixture(scope="module")
+def ikeda_fine():
+    # 500 samples per delay, 100 per response time: smooth at the sampling step
+    raw = Ikeda().simulate(40_000, sample_dt=0.01, random_state=4)
+    return measure(raw, noise=0.005, random_state=4)
+
+
+def test_coarser_steps_are_tried_where_the_chosen_step_shows_no_dip(ikeda_fine):
+    # the second-difference rule keeps step 1 (its structure function is not quadratic
+    # over the first lags), where no m has a significant dip
+    assert sampling_step(ikeda_fine) == 1
+    res = analyze_series(ikeda_fine, m=(2, 3), tau_min=400, tau_max=600, sample_dt=0.01,
+                         quick=True)
+    print(res.steps_tried, res.delays.to_string())  # the dips behind the verdict
+    assert res.steps_tried[0] == 1 and res.step == res.steps_tried[-1] > 1
+    good = res.delays[res.delays["significant"]]
+    assert len(good)
+    delay = 500 / res.step  # in coarse samples
+    # every significant dip's error bar holds the delay, within 1.5 coarse samples (the
+    # dip of a flow sits up to a sample early: 123.9-124.6 at step 4)
+    assert np.all(np.abs(good["delay"] - delay) <= good["delay_error"])
+    assert np.all(np.abs(good["delay"] - delay) <= 1.5)
+    assert "coarser steps were tried" in res.summary()
+    assert res.summary_row()["steps_tried"] == list(res.steps_tried)
+
+
+def test_coarser_steps_find_no_dip_where_there_is_no_delay():
+    # smooth noise (white noise through a Gaussian filter of 20 samples) has no delay: no
+    # rung of the ladder may report a dip
+    rng = np.random.default_rng(0)
+    kernel = np.exp(-0.5 * (np.arange(-80, 81) / 20.0) ** 2)
+    x = measure(np.convolve(rng.standard_normal(40_000 + 160), kernel, mode="valid"),
+                noise=0.005, random_state=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NoDipWarning)
+        res = analyze_series(x, m=(2, 3), tau_min=40, tau_max=300, quick=True)
+    print(res.steps_tried, res.delays.to_string())
+    assert len(res.steps_tried) > 1 and res.step == res.steps_tried[0]
+    assert not res.delays["significant"].any()
+    assert "nor at the coarser" in res.summary()
