@@ -214,6 +214,9 @@ class AnalysisResult:
     steps_tried : tuple of int
         Every step whose scan was run: the chosen one and, when it showed no
         significant dip, the coarser ones of :data:`STEP_LADDER`.
+    n_record : int or None
+        Samples of the record (None: ``series.size * step``, which overcounts by
+        up to ``step - 1``).
     model_selection : pandas.DataFrame or None
         The cross-validation table behind the model settings (``select_model``).
     time_unit : str
@@ -257,6 +260,7 @@ class AnalysisResult:
     minimal_m_reason: str = ""
     step: int = 1
     steps_tried: tuple = (1,)
+    n_record: int | None = None
     model_selection: pd.DataFrame | None = None
     time_unit: str = "time unit"
     options: dict = field(default_factory=dict)
@@ -334,7 +338,7 @@ class AnalysisResult:
         """A few lines for the terminal."""
         r = self.summary_row()
         lines = [
-            f"{self.name}: {self.series.size * self.step} samples, dt = "
+            f"{self.name}: {self.n_record or self.series.size * self.step} samples, dt = "
             f"{self.sample_dt / self.step:g}"
             + ("" if self.step == 1 else
                f"; oversampled: every {self.step}-th sample analysed (delays below in those "
@@ -684,7 +688,7 @@ def analyze_series(series, options=None, *, quick=False, random_state=0, n_jobs=
         name=name, sample_dt=dt, series=s, revivals=revivals, forecast_error=curve,
         delays=dips, m=ms[-1], spectra=faithful.spectra, validation=faithful.table,
         minimal_m=faithful.m_d, minimal_m_reason=faithful.reason, step=step,
-        steps_tried=tuple(tried),
+        steps_tried=tuple(tried), n_record=raw.size,
         model_selection=None if selection is None else selection.table,
         time_unit=opts.time_unit,
         runs={mm: r[0] for mm, r in faithful.runs.items() if r}, options=opts.to_dict(),

@@ -116,3 +116,5 @@ def test_coarser_steps_find_no_dip_where_there_is_no_delay():
     assert len(res.steps_tried) > 1 and res.step == res.steps_tried[0]
     assert not res.delays["significant"].any()
     assert "nor at the coarser" in res.summary()
+    # the record's own length, not the analysed samples times the step (13334 x 3)
+    assert res.summary().startswith(f"series: {x.size} samples") and x.size == 40_000
