@@ -31,7 +31,7 @@ from ._iterate import progress_bars
 from ._model import ModelOptions
 from ._model_selection import select_model_options
 from ._report import write_analysis_report
-from ._sampling import MAX_STEP, sampling_step, white_noise_level
+from ._sampling import MAX_STEP, sampling_step, smooth_at_step
 from ._selection import forecast_error_curve
 
 __all__ = [
@@ -45,7 +45,8 @@ __all__ = [
 
 #: Coarser steps tried, each twice the last, when the step chosen from the data
 #: (:func:`~skdelay._sampling.sampling_step`) shows no significant dip in a record that is
-#: smooth at its sampling step.  The second-difference rule behind that step misses when
+#: smooth at its sampling step (:func:`~skdelay._sampling.smooth_at_step`; a rough record,
+#: Ikeda at 5 samples per delay, has no dip that a coarser step could uncover).  The second-difference rule behind that step misses when
 #: the structure function is not quadratic over its first lags although the record is
 #: smooth: the Ikeda equation sampled 500 times per delay (0.5 % noise, 4e4 samples) got
 #: step 1, where no m had a significant dip (z 0.6-1.4), nor at step 2 (z 2.5-3.1), while
@@ -618,10 +619,10 @@ def analyze_series(series, options=None, *, quick=False, random_state=0, n_jobs=
     t1 = time.perf_counter()
     s, opts, n_jobs, curve, dips = scan_at(step, DIP_ALPHA)
     tried = [step]
-    # no dip at the chosen step of a record that is smooth at its sampling step (its
-    # white-noise floor is resolved): the delayed window's share of the next value may
-    # still drown in the noise, so coarser steps are tried (see STEP_LADDER)
-    if chosen and not dips["significant"].any() and white_noise_level(raw)[1]:
+    # no dip at the chosen step of a record that is smooth at its sampling step: the
+    # delayed window's share of the next value may still drown in the noise, so coarser
+    # steps are tried (see STEP_LADDER)
+    if chosen and not dips["significant"].any() and smooth_at_step(raw):
         for rung in range(1, STEP_LADDER + 1):
             coarser = step * 2 ** rung
             if coarser > MAX_STEP:
