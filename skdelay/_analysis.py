@@ -30,7 +30,7 @@ from ._io import atomic_directory, write_json
 from ._iterate import progress_bars
 from ._model import ModelOptions
 from ._model_selection import select_model_options
-from ._report import write_analysis_report
+from ._report import step_sentence, write_analysis_report
 from ._sampling import MAX_STEP, sampling_step, smooth_at_step
 from ._selection import forecast_error_curve
 
@@ -215,6 +215,8 @@ class AnalysisResult:
     steps_tried : tuple of int
         Every step whose scan was run: the chosen one and, when it showed no
         significant dip, the coarser ones of :data:`STEP_LADDER`.
+    step_given : bool
+        Whether the step was given (``step`` option) rather than chosen from the data.
     n_record : int or None
         Samples of the record (None: ``series.size * step``, which overcounts by
         up to ``step - 1``).
@@ -261,6 +263,7 @@ class AnalysisResult:
     minimal_m_reason: str = ""
     step: int = 1
     steps_tried: tuple = (1,)
+    step_given: bool = False
     n_record: int | None = None
     model_selection: pd.DataFrame | None = None
     time_unit: str = "time unit"
@@ -323,28 +326,13 @@ class AnalysisResult:
             "timings_s": {k: round(v, 2) for k, v in self.timings.items()},
         }
 
-    def _ladder_clause(self):
-        """What the coarser steps of :data:`STEP_LADDER` showed, if they were tried."""
-        tried = list(self.steps_tried)
-        if len(tried) < 2:
-            return ""
-        if self.step != tried[0]:
-            failed = ", ".join(map(str, tried[:-1]))
-            return (f"; no significant dip at step(s) {failed}, so coarser steps were tried "
-                    f"and step {self.step} shows one")
-        return (f"; no significant dip at step {tried[0]} nor at the coarser "
-                f"{', '.join(map(str, tried[1:]))}")
-
     def summary(self):
         """A few lines for the terminal."""
         r = self.summary_row()
         lines = [
-            f"{self.name}: {self.n_record or self.series.size * self.step} samples, dt = "
-            f"{self.sample_dt / self.step:g}"
-            + ("" if self.step == 1 else
-               f"; oversampled: every {self.step}-th sample analysed (delays below in those "
-               f"coarse samples, the model's delay {r['delay']} in the record's samples)")
-            + self._ladder_clause(),
+            (f"{self.name}: {self.n_record or self.series.size * self.step} samples, dt = "
+             f"{self.sample_dt / self.step:g}"),
+            *([step_sentence(self)] if step_sentence(self) else []),
             "delay per m (samples): " + ", ".join(
                 f"m={m}: {row.delay:.1f} +- {row.delay_error:.1f}"
                 + ("" if row.significant else " (no significant dip)")
@@ -689,7 +677,7 @@ def analyze_series(series, options=None, *, quick=False, random_state=0, n_jobs=
         name=name, sample_dt=dt, series=s, revivals=revivals, forecast_error=curve,
         delays=dips, m=ms[-1], spectra=faithful.spectra, validation=faithful.table,
         minimal_m=faithful.m_d, minimal_m_reason=faithful.reason, step=step,
-        steps_tried=tuple(tried), n_record=raw.size,
+        steps_tried=tuple(tried), step_given=not chosen, n_record=raw.size,
         model_selection=None if selection is None else selection.table,
         time_unit=opts.time_unit,
         runs={mm: r[0] for mm, r in faithful.runs.items() if r}, options=opts.to_dict(),

@@ -226,6 +226,36 @@ def faithful_sentence(result):
         f"{result.minimal_m_reason or 'see the table'}."
 
 
+def step_sentence(result):
+    """Which sampling step the analysis used and why, in words that fit how it was chosen
+    (empty for a record analysed at its own step without trying others)."""
+    step, dt = result.step, result.sample_dt
+    tried = list(getattr(result, "steps_tried", (step,)) or (step,))
+    where = (f"so the delays below are in steps of {dt:g}; the model's delay is "
+             f"{result.delay * step} samples of the record.")
+
+    def every(h):
+        return "every sample" if h == 1 else f"every {h}-th sample"
+
+    if getattr(result, "step_given", False):
+        return "" if step == 1 else f"Every {step}-th sample was analysed, as asked, {where}"
+    if step != tried[0]:  # the ladder of coarser steps found the dip
+        nor = "" if len(tried) < 3 else (
+            f", nor at {', '.join(every(h) for h in tried[1:-1])}")
+        return (f"At the step chosen from the measurement noise ({every(tried[0])}) no window "
+                f"length showed a significant forecast-error dip{nor}; {every(step)} shows "
+                f"one, {where}")
+    out = "" if step == 1 else (
+        f"The record is oversampled (the part of the next sample that the last samples "
+        f"cannot extrapolate, its second difference, is comparable to the measurement "
+        f"noise): {every(step)} was analysed, {where}")
+    if len(tried) > 1:
+        out += (" " if out else "") + (
+            f"Coarser steps ({', '.join(every(h) for h in tried[1:])}) showed no significant "
+            "forecast-error dip either.")
+    return out
+
+
 def delay_sentence(result):
     """What the forecast-error dip says about the delay, conditioned on its significance."""
     row = result.delays.loc[result.m]
@@ -279,14 +309,10 @@ def analysis_sections(result, *, scale=1.0, unit="1/time unit", prefix=""):
                               "collapsed_at": "collapsed at [step]"}).T
     rev = result.revivals
     intro = (
-        f"<p>{html.escape(result.name)}: {result.series.size} samples, sampling interval "
-        f"{dt / result.step:g}. "
-        + ("" if result.step == 1 else
-           f"The record is oversampled (the part of the next sample that the last samples "
-           f"cannot extrapolate, its second difference, is comparable to the "
-           f"measurement noise): every {result.step}-th sample was analysed, so the delays "
-           f"below are in steps of {dt:g}; the model's delay is {result.delay * result.step} "
-           "samples of the record. ")
+        f"<p>{html.escape(result.name)}: "
+        f"{getattr(result, 'n_record', None) or result.series.size * result.step} samples, "
+        f"sampling interval {dt / result.step:g}. "
+        + (html.escape(step_sentence(result)) + " " if step_sentence(result) else "")
         + f"Delays in samples; exponents per {html.escape(unit.split('/', 1)[-1])}. "
         f"{html.escape(delay_sentence(result))} "
         f"{html.escape(revival_sentence('autocorrelation', rev.get('acf_strongest'), result))} "
