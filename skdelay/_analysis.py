@@ -30,7 +30,7 @@ from ._io import atomic_directory, write_json
 from ._iterate import progress_bars
 from ._model import ModelOptions
 from ._model_selection import select_model_options
-from ._report import step_sentence, write_analysis_report
+from ._report import ordinal, step_sentence, write_analysis_report
 from ._sampling import MAX_STEP, sampling_step, smooth_at_step
 from ._selection import forecast_error_curve
 
@@ -595,7 +595,7 @@ def analyze_series(series, options=None, *, quick=False, random_state=0, n_jobs=
         if jobs is None:  # worker start-up only pays off for big scans
             jobs = -1 if len(o.m) * len(taus) * o.n_queries > PARALLEL_FORECASTS else 1
         if step > 1:
-            say(f"oversampled record: analysing every {step}-th sample")
+            say(f"oversampled record: analysing every {ordinal(step)} sample")
         say(f"delay scan: m = {', '.join(map(str, o.m))}, tau = {taus.start}..{taus.stop - 1} "
             f"({len(o.m) * len(taus)} cells, {o.n_queries} forecasts each)")
         # the bar replaces joblib's "Done k out of n" lines, which broke it into pieces

@@ -226,6 +226,13 @@ def faithful_sentence(result):
         f"{result.minimal_m_reason or 'see the table'}."
 
 
+def ordinal(h):
+    """``2nd``, ``3rd``, ``4th``, ``11th``, ``22nd`` ..."""
+    h = int(h)
+    suffix = "th" if 10 <= h % 100 <= 20 else {1: "st", 2: "nd", 3: "rd"}.get(h % 10, "th")
+    return f"{h}{suffix}"
+
+
 def step_sentence(result):
     """Which sampling step the analysis used and why, in words that fit how it was chosen
     (empty for a record analysed at its own step without trying others)."""
@@ -235,10 +242,10 @@ def step_sentence(result):
              f"{result.delay * step} samples of the record.")
 
     def every(h):
-        return "every sample" if h == 1 else f"every {h}-th sample"
+        return "every sample" if h == 1 else f"every {ordinal(h)} sample"
 
     if getattr(result, "step_given", False):
-        return "" if step == 1 else f"Every {step}-th sample was analysed, as asked, {where}"
+        return "" if step == 1 else f"Every {ordinal(step)} sample was analysed, as asked, {where}"
     if step != tried[0]:  # the ladder of coarser steps found the dip
         nor = "" if len(tried) < 3 else (
             f", nor at {', '.join(every(h) for h in tried[1:-1])}")
