@@ -46,13 +46,15 @@ __all__ = [
 #: Coarser steps tried, each twice the last, when the step chosen from the data
 #: (:func:`~skdelay._sampling.sampling_step`) shows no significant dip in a record that is
 #: smooth at its sampling step (:func:`~skdelay._sampling.smooth_at_step`; a rough record,
-#: Ikeda at 5 samples per delay, has no dip that a coarser step could uncover).  The second-difference rule behind that step misses when
-#: the structure function is not quadratic over its first lags although the record is
-#: smooth: the Ikeda equation sampled 500 times per delay (0.5 % noise, 4e4 samples) got
-#: step 1, where no m had a significant dip (z 0.6-1.4), nor at step 2 (z 2.5-3.1), while
-#: steps 5 and 10 gave z 7-11 with the dip within half a coarse sample of the delay.  Each
-#: rung ``r`` tests its dips at ``DIP_ALPHA / 2 ** r``, so the whole ladder keeps a
-#: family-wise false-dip rate below ``2 * DIP_ALPHA``.
+#: Ikeda at 5 samples per delay, has no dip that a coarser step could uncover).  The
+#: second-difference rule behind that step misses when the structure function is not
+#: quadratic over its first lags although the record is smooth: the Ikeda equation sampled
+#: 500 times per delay (0.5 % noise, 4e4 samples, tests/test_dips_oversampled.py) got step
+#: 1, where no m had a significant dip (z 0.6-1.4), nor at step 2 (z 2.5-3.1), while steps 5
+#: and 10 gave z 7-11 with the dip within half a coarse sample of the delay.  Each rung
+#: ``r`` tests its dips at ``DIP_ALPHA / 2 ** r``, so the whole ladder keeps a family-wise
+#: false-dip rate below ``2 * DIP_ALPHA``; benchmarks/oversampled.py checks it on records
+#: no test uses (smooth noise without a delay: no dip at any rung).
 STEP_LADDER = 4
 #: Window lengths of the paper's analysis (its m_d was at most 5).
 DEFAULT_M = (2, 3, 4, 5)
@@ -436,7 +438,8 @@ class AnalysisOptions:
         (:func:`~skdelay._sampling.sampling_step`: 1 unless the record is so
         oversampled that its second difference drowns in measurement noise; when
         that step shows no significant dip, coarser ones are tried, see
-        :data:`STEP_LADDER`).  Delay ranges (``tau_min``, ``tau_max``) are in the original samples.
+        :data:`STEP_LADDER`).  Delay ranges (``tau_min``, ``tau_max``) are in the
+        original samples.
     select_model : bool
         Choose the models' neighbourhood size and ridge by time-series
         cross-validation (:func:`~skdelay._model_selection.select_model_options`)
