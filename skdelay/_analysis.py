@@ -313,7 +313,8 @@ class AnalysisResult:
         rev = self.revivals
         return {
             "name": self.name,
-            "n_samples": int(self.series.size),
+            "n_samples": int(self.series.size),  # analysed: every step-th of the record's
+            "n_record": int(self.n_record or self.series.size * self.step),
             "sample_dt": self.sample_dt,
             "summary": self.summary_row(),
             "revival": {"autocorrelation_first": rev.get("acf_revival"),

@@ -101,6 +101,8 @@ def test_coarser_steps_are_tried_where_the_chosen_step_shows_no_dip(ikeda_fine):
     assert "no window length showed a significant forecast-error dip" in res.summary()
     assert "every 4th sample shows one" in res.summary() and res.step == 4
     assert res.summary_row()["steps_tried"] == list(res.steps_tried)
+    d = res.to_dict()
+    assert d["n_record"] == ikeda_fine.size and d["n_samples"] == res.series.size
 
 
 def test_coarser_steps_find_no_dip_where_there_is_no_delay():
