@@ -270,9 +270,17 @@ def delay_sentence(result):
         return (f"The forecast-error dip of m = {result.m} gives the delay "
                 f"{row['delay']:.1f} +- {row['delay_error']:.1f} samples; the model uses "
                 f"tau = {result.delay}.")
+    others = result.delays[result.delays["significant"].astype(bool)] \
+        if "significant" in result.delays else result.delays.iloc[:0]
+    if len(others):  # another window length does show the dip: say so, not "cannot tell"
+        told = "; ".join(f"m = {m}: {r['delay']:.1f} +- {r['delay_error']:.1f}"
+                         for m, r in others.iterrows())
+        return (f"The forecast error of m = {result.m} shows no significant dip "
+                f"({row.get('reason', '')}), but other window lengths do ({told} samples); the "
+                f"model of m = {result.m} uses its own grid minimum tau = {result.delay}.")
     return (f"The forecast error of m = {result.m} shows no significant dip "
-            f"({row.get('reason', '')}): the data cannot tell the delay; the model uses the "
-            f"grid minimum tau = {result.delay}.")
+            f"({row.get('reason', '')}), nor does any other window length: the data cannot "
+            f"tell the delay; the model uses the grid minimum tau = {result.delay}.")
 
 
 def revival_sentence(name, lag, result):

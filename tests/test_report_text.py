@@ -37,3 +37,14 @@ def test_faithful_sentence_follows_the_verdict():
     assert "m_d = 3" in faithful_sentence(_result(minimal_m=3))
     text = faithful_sentence(_result(reason="the model with m=5 is not faithful"))
     assert text.startswith("No model up to m = 5 is faithful") and "m=5" in text
+
+
+def test_a_dip_of_another_window_length_is_named_not_denied():
+    # the model's m (5) has no significant dip, m = 2 has one: "cannot tell" would be false
+    res = _result(significant=False)
+    res.delays = pd.concat([pd.DataFrame(
+        {"delay": [39.6], "delay_error": [1.1], "significant": [True], "reason": [""]},
+        index=pd.Index([2], name="m")), res.delays])
+    text = delay_sentence(res)
+    assert "cannot tell" not in text and "m = 2: 39.6 +- 1.1" in text
+    assert text.startswith("The forecast error of m = 5 shows no significant dip")
