@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 from scipy.signal import find_peaks
 
-from ._checks import check_positive_int, check_series, resolve_sample_dt
+from ._checks import check_params, check_positive_int, check_series, resolve_sample_dt
 from ._correlation import autocorrelation, mutual_information, revival_peak
 from ._dips import DIP_ALPHA, locate_dips
 from ._embedding import required_lags
@@ -581,6 +581,7 @@ def analyze_series(series, options=None, *, quick=False, random_state=0, n_jobs=
     opts = _options_from(options, quick, dict(overrides))
     opts = replace(opts, sample_dt=resolve_sample_dt(series, opts.sample_dt))
     raw = check_series(series, name="series")
+    n_jobs = check_params(n_jobs=n_jobs)
     chosen = opts.step is None
     step = sampling_step(raw) if chosen else check_positive_int(opts.step, name="step")
     base, requested, bar = opts, n_jobs, progress is not None and verbose > 0

@@ -75,10 +75,19 @@ def check_positive_int(value, *, name, minimum=1, maximum=None):
     return value
 
 
-def check_random_state(random_state):
-    """Thin alias of :func:`sklearn.utils.check_random_state` (one import site)."""
+def check_random_state(random_state, *, name="random_state"):
+    """:func:`sklearn.utils.check_random_state` that also takes a numpy ``Generator``.
+
+    The value is checked first (:data:`PARAM_RULES`, a message naming ``name``); a
+    ``Generator`` seeds a new ``RandomState`` from its next draw, so the same generator
+    state gives the same result (scikit-learn's helper refuses generators, which the
+    public docstrings promise).
+    """
     from sklearn.utils import check_random_state as _crs
 
+    random_state = _RandomState()(name, random_state)
+    if isinstance(random_state, np.random.Generator):
+        return np.random.RandomState(int(random_state.integers(MAX_SEED + 1)))
     return _crs(random_state)
 
 

@@ -167,6 +167,10 @@ def locate_dip(taus, values, *, se=None, level=1 / 3, shift=0.0, alpha=DIP_ALPHA
                          f"and {c.shape}.")
     if c.size == 0:
         raise ValueError("the forecast-error curve is empty; scan at least 5 delays.")
+    if np.any(np.diff(taus) <= 0):
+        # the dip's run and flanks are read along the array: unsorted delays misplace them
+        raise ValueError("the delays tau must be strictly increasing (one value each); sort "
+                         "the curve by tau first (DataFrame.sort_index()).")
     if not np.all(np.isfinite(c)):
         bad = taus[~np.isfinite(c)]
         raise ValueError(f"the forecast error is NaN or infinite at tau = {bad[:5].tolist()}; "
@@ -257,9 +261,24 @@ def locate_dips(forecast_error, *, level=1 / 3, se=None, alpha=DIP_ALPHA,
     >>> round(float(row["delay"]), 2), round(float(row["half_width"]), 2), int(row["tau_min"])
     (14.17, 1.33, 14)
     """
+    if not isinstance(forecast_error, pd.DataFrame):
+        raise TypeError(
+            f"forecast_error must be a pandas DataFrame (index tau, one column per m), got "
+            f"{type(forecast_error).__name__}; pass the table of forecast_error_curve(series, "
+            f"m=..., tau=...), or pd.DataFrame({{m: errors}}, index=taus) for one curve.")
+    if se is not None and not isinstance(se, pd.DataFrame):
+        raise TypeError(f"se must be a pandas DataFrame shaped like forecast_error, got "
+                        f"{type(se).__name__}.")
+    if forecast_error.shape[1] == 0:
+        raise ValueError("forecast_error has no columns; give one column of errors per m.")
     if se is None:
         se = forecast_error.attrs.get("se")
-    taus = np.asarray(forecast_error.index, dtype=np.float64)
+    try:
+        taus = np.asarray(forecast_error.index, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"forecast_error's index must hold the delays tau (numbers), got "
+                         f"{forecast_error.index[:3].tolist()}...; set it with "
+                         "df.set_index('tau') or pd.DataFrame(..., index=taus).") from None
     rows = {}
     for m in forecast_error.columns:
         shift = -0.5 if isinstance(m, (int, np.integer)) and m >= 3 and m % 2 else 0.0

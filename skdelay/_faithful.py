@@ -40,7 +40,7 @@ import pandas as pd
 from scipy.stats import binom
 
 from . import validation
-from ._checks import check_positive_int, check_random_state, check_series
+from ._checks import check_params, check_positive_int, check_random_state, check_series
 from ._correlation import autocorrelation
 from ._dips import locate_dips
 from ._embedding import required_lags
@@ -559,6 +559,7 @@ def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_mi
     ([1, 2, 3], True)
     """
     s = check_series(series, name="series", min_length=100)
+    n_jobs = check_params(n_jobs=n_jobs)
     # models, runs and spectra are scale free; the distances and noise estimates square
     # the data, so they work on exactly rescaled values (data at 1e-300 would underflow)
     unit = Standardiser.fit(s).scale

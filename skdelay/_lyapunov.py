@@ -18,7 +18,7 @@ import numpy as np
 from numba import njit
 from scipy.spatial import cKDTree
 
-from ._checks import check_positive_int, check_series
+from ._checks import check_params, check_positive_int, check_series
 from ._iterate import (
     OffSupportWarning,
     check_finite,
@@ -200,6 +200,7 @@ def _spectrum(model, series, *, n_exponents, n_steps, sample_dt, tau, n_transien
         qr_interval = check_positive_int(qr_interval, name="qr_interval")
     min_steps = 4 * n_blocks
     s = check_series(series, name="series", min_length=dim + 1 + min_steps)
+    n_jobs = check_params(n_jobs=n_jobs)
     X, _ = lagged_windows(s, dim)
     if n_steps is not None:
         n_steps = check_positive_int(n_steps, name="n_steps", minimum=min_steps)

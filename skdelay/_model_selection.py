@@ -28,11 +28,12 @@ import pandas as pd
 from sklearn.model_selection import GridSearchCV, TimeSeriesSplit
 from sklearn.pipeline import Pipeline
 
-from ._checks import check_positive_int, check_series
+from ._checks import check_params, check_positive_int, check_series
 from ._embedding import TwoWindowEmbedding, required_lags
 from ._iterate import iterate
 from ._local_linear import LocalLinearDelayMap
 from ._model import ModelOptions
+from ._neighbours import Standardiser
 from ._windows import lagged_windows
 
 __all__ = ["PER_PARAMETER_GRID", "RIDGE_GRID", "ModelSelection", "SpectrumModelSelection",
@@ -58,6 +59,15 @@ class ModelSelection:
     options: ModelOptions
     table: pd.DataFrame
     horizon: int
+
+
+def _unit_scale(s):
+    """``s`` divided by the power of two nearest its root mean square (exact, see
+    :class:`~skdelay._neighbours.Standardiser`).  The choices are scale free but the
+    scorers divide errors by the series' standard deviation, which underflows to 0 for
+    data at 1e-300 (a ZeroDivisionError) and overflows to inf at 1e300 (every score 0, an
+    arbitrary choice)."""
+    return s / Standardiser.fit(s).scale
 
 
 def _rows(n, n_scored, seed, margin=0):
@@ -145,7 +155,8 @@ def select_model_options(series, m, tau, *, base=None, per_parameter=PER_PARAMET
     >>> sel.options.per_parameter in (2, 8), int(sel.table["chosen"].sum())
     (True, 1)
     """
-    s = check_series(series, name="series", min_length=200)
+    s = _unit_scale(check_series(series, name="series", min_length=200))
+    n_jobs = check_params(n_jobs=n_jobs)
     m = check_positive_int(m, name="m")
     tau = check_positive_int(tau, name="tau")
     horizon = min(max(2, tau // 4), 50) if horizon is None else check_positive_int(horizon,
@@ -349,7 +360,8 @@ def select_spectrum_model(series, delay, *, steps=STEP_GRID, spans=SPAN_GRID,
     -------
     SpectrumModelSelection
     """
-    s = check_series(series, name="series", min_length=200)
+    s = _unit_scale(check_series(series, name="series", min_length=200))
+    n_jobs = check_params(n_jobs=n_jobs)
     delay = check_positive_int(delay, name="delay")
     horizon = (round(HORIZON_DELAYS * delay) if horizon is None
                else check_positive_int(horizon, name="horizon"))

@@ -24,7 +24,7 @@ from sklearn.model_selection import TimeSeriesSplit, check_cv
 from sklearn.pipeline import Pipeline
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from skdelay._checks import check_positive_int, check_random_state, check_series
+from skdelay._checks import check_params, check_positive_int, check_random_state, check_series
 from skdelay._correlation import autocorrelation
 from skdelay._dips import locate_dips
 from skdelay._embedding import TwoWindowEmbedding, required_lags, two_window_columns
@@ -216,6 +216,7 @@ def forecast_error_curve(series, m=(2, 3, 4, 5), tau=range(1, 101), *, n_neighbo
     True
     """
     s = check_series(series, name="series")
+    n_jobs = check_params(n_jobs=n_jobs)
     z, z_std, scale = rescaled(s)
     ms, taus = as_grid(m, "m"), as_grid(tau, "tau")
     n_lags = required_lags(int(ms[-1]), int(taus[-1]))
@@ -503,6 +504,7 @@ class DelaySelectorCV(RegressorMixin, BaseEstimator):
             When no ``m`` has a significant dip (``delay_`` is then NaN).
         """
         X, y = validate_data(self, X, y, y_numeric=True, dtype=np.float64)
+        check_params(n_jobs=self.n_jobs)
         y = np.asarray(y, dtype=np.float64)
         n, n_lags = X.shape
         ms, taus = self._grid(n_lags)

@@ -503,6 +503,82 @@ def test_invalid_parameters_fail_at_the_call(call, error, needles):
         assert needle in str(info.value), str(info.value)
 
 
+def _fitted_henon_model():
+    from sklearn.pipeline import make_pipeline
+
+    from skdelay import LocalLinearDelayMap, TwoWindowEmbedding, lagged_windows
+
+    return make_pipeline(TwoWindowEmbedding(m=2, tau=1), LocalLinearDelayMap()).fit(
+        *lagged_windows(X, required_lags(2, 1)))
+
+
+@pytest.mark.parametrize("entry", ["forecast_error_curve", "DelaySelectorCV", "analyze_series",
+                                   "minimal_embedding", "lyapunov_spectrum",
+                                   "select_model_options", "select_spectrum_model",
+                                   "diagnose_gap"])
+def test_every_parallel_entry_point_checks_n_jobs_itself(entry):
+    # n_jobs=0 reached joblib's "n_jobs == 0 in Parallel has no meaning" (or was taken as
+    # serial by the thread pools) after the work had started
+    import skdelay
+    from skdelay import dynamics, gap, model_selection
+    from skdelay.systems import MackeyGlass
+
+    calls = {
+        "forecast_error_curve": lambda: skdelay.forecast_error_curve(X, m=2, tau=[1, 2],
+                                                                     n_jobs=0),
+        "DelaySelectorCV": lambda: skdelay.DelaySelectorCV(m=[2], tau=[1, 2], n_jobs=0).fit(
+            *skdelay.lagged_windows(X, 4)),
+        "analyze_series": lambda: skdelay.analyze_series(X, n_jobs=0),
+        "minimal_embedding": lambda: dynamics.minimal_embedding(X, tau=1, m_max=2, n_jobs=0),
+        "lyapunov_spectrum": lambda: dynamics.lyapunov_spectrum(_fitted_henon_model(), X,
+                                                                n_jobs=0),
+        "select_model_options": lambda: model_selection.select_model_options(X, 2, 1,
+                                                                             n_jobs=0),
+        "select_spectrum_model": lambda: model_selection.select_spectrum_model(X, 1, n_jobs=0),
+        "diagnose_gap": lambda: gap.diagnose_gap(MackeyGlass().simulate(3000, random_state=0),
+                                                 MackeyGlass(), n_jobs=0),
+    }
+    with pytest.raises(ValueError, match="n_jobs must be a non-zero integer, got 0; use 1"):
+        calls[entry]()
+
+
+@pytest.mark.parametrize("table, error, needle", [
+    (np.ones(5), TypeError, "forecast_error must be a pandas DataFrame"),
+    (pd.DataFrame(), ValueError, "has no columns"),
+    (pd.DataFrame({2: [3.0, 2, 1, 2, 3]}, index=list("abcde")), ValueError,
+     "index must hold the delays tau"),
+    (pd.DataFrame({2: [3.0, 2, 1, 2, 3]}, index=[5, 1, 3, 2, 4]), ValueError,
+     "strictly increasing"),
+])
+def test_locate_dips_refuses_what_is_not_a_forecast_error_table(table, error, needle):
+    from skdelay import locate_dips
+
+    with pytest.raises(error, match=needle):
+        locate_dips(table)
+
+
+def test_a_numpy_generator_is_a_random_state_as_the_docstrings_promise():
+    # sklearn's check_random_state refuses generators: simulate, forecast_error_curve,
+    # analyze_series and minimal_embedding raised "cannot be used to seed a RandomState"
+    import skdelay
+    from skdelay.systems import MackeyGlass
+
+    def run(seed):
+        x = MackeyGlass().simulate(3000, random_state=np.random.default_rng(seed))
+        sigma = skdelay.forecast_error_curve(x, m=2, tau=[10, 17], n_queries=300,
+                                             random_state=np.random.default_rng(seed))
+        return x, sigma
+
+    (x0, s0), (x1, s1), (x2, _) = run(0), run(0), run(1)
+    np.testing.assert_array_equal(x0, x1)
+    pd.testing.assert_frame_equal(s0, s1)
+    assert not np.array_equal(x0, x2)
+    # the delay-17 model forecasts better than the delay-10 one
+    assert s0.loc[17, 2] < s0.loc[10, 2]
+    with pytest.raises(TypeError, match="random_state must be None, an integer seed"):
+        MackeyGlass().simulate(100, random_state="x")
+
+
 def test_cross_prediction_by_region_counts_every_row_once():
     # the vectorised cell statistics (one bincount pass) cover every predicted row
     where = validation.cross_prediction_by_region(X, Y, m=2, tau=2, n_regions=3, random_state=0)

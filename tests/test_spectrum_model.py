@@ -102,3 +102,22 @@ def test_the_demo_spectrum_ranges_over_the_settings_the_data_cannot_tell_apart(m
         assert ranges["lambda_max"][1] > ranges["lambda_max"][0]
     else:
         assert ranges["lambda_max"][0] == ranges["lambda_max"][1] == spec.exponents[0]
+
+
+@pytest.mark.parametrize("factor", [1e-300, 1e300])
+def test_selections_at_extreme_scales_equal_those_at_unit_scale(mg, factor):
+    # the scorers divide by the series' standard deviation, which underflowed to 0 at 1e-300
+    # (a ZeroDivisionError) and overflowed to inf at 1e300 (every score 0, any choice)
+    from skdelay._model_selection import select_model_options
+
+    kw = {"per_parameter": (2, 8), "ridge": (1e-3, 1e-1), "n_scored": 150}
+    ref, got = select_model_options(mg, 2, 17, **kw), select_model_options(mg * factor, 2, 17, **kw)
+    assert got.options == ref.options
+    np.testing.assert_allclose(got.table[["one_step", "iterated"]],
+                               ref.table[["one_step", "iterated"]], rtol=1e-12)
+    assert 0 < ref.table["one_step"].min() < 0.5
+    kw = {"steps": (1,), "spans": (0.1,), "n_neighbors": (15, 40), "ridge": (1e-3,),
+          "horizon": 20, "n_runs": 8}
+    ref, got = select_spectrum_model(mg, 17, **kw), select_spectrum_model(mg * factor, 17, **kw)
+    assert got.options == ref.options
+    np.testing.assert_allclose(got.table["error"], ref.table["error"], rtol=1e-12)

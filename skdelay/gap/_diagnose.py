@@ -10,7 +10,7 @@ from joblib import Parallel, delayed
 from scipy import stats
 from threadpoolctl import threadpool_limits
 
-from .._checks import check_positive_int, check_series
+from .._checks import check_params, check_positive_int, check_series
 from ._effects import (
     CandidateFailed,
     Effect,
@@ -1275,6 +1275,7 @@ def _diagnose(real, simulator, *, sample_dt, effects, random_state, n_jobs, n_si
     from .._iterate import progress_bar
 
     real = check_series(real, name="real", min_length=MIN_SAMPLES)
+    n_jobs = check_params(n_jobs=n_jobs)
     sample_dt, time_unit = parse_sample_dt(sample_dt, time_unit)
     params = _check_simulator(simulator)
     _check_length(real.size, params, sample_dt)
