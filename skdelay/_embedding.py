@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import numbers
+from typing import ClassVar
+
 import numpy as np
 from sklearn.base import BaseEstimator, TransformerMixin
+from sklearn.utils._param_validation import Interval
 from sklearn.utils.validation import _check_feature_names_in, validate_data
 
 from skdelay._checks import check_positive_int
@@ -127,6 +131,11 @@ class TwoWindowEmbedding(TransformerMixin, BaseEstimator):
            [4., 3., 2., 1.]])
     """
 
+    _parameter_constraints: ClassVar[dict] = {
+        "m": [Interval(numbers.Integral, 1, None, closed="left")],
+        "tau": [Interval(numbers.Integral, 1, None, closed="left")],
+    }
+
     def __init__(self, m=2, tau=1):
         self.m = m
         self.tau = tau
@@ -156,6 +165,7 @@ class TwoWindowEmbedding(TransformerMixin, BaseEstimator):
         -------
         self : TwoWindowEmbedding
         """
+        self._validate_params()
         X = validate_data(self, X, dtype=[np.float64, np.float32])
         self._columns(X.shape[1])
         return self

@@ -10,12 +10,15 @@ fitted maps and forecasts do not depend on the data's units or scale.
 from __future__ import annotations
 
 import numbers
+from typing import ClassVar
 
 import numpy as np
 from scipy.spatial import cKDTree
 from sklearn.base import BaseEstimator, RegressorMixin
+from sklearn.utils._param_validation import Interval, Options
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from ._checks import check_params
 from ._neighbours import RADIUS_CAP, Standardiser, chunk_slices, fit_gathered, tree_neighbours
 
 __all__ = ["LocalLinearDelayMap"]
@@ -23,21 +26,6 @@ __all__ = ["LocalLinearDelayMap"]
 #: Relative spread below which the training vectors differ only by rounding: neighbour
 #: distances are then ties decided by the last bits, so no neighbourhood means anything.
 MIN_RELATIVE_SPREAD = 1e-12
-
-
-def _check_params(est):
-    k = est.n_neighbors
-    if isinstance(k, (bool, np.bool_)) or not isinstance(k, numbers.Integral) or k < 1:
-        raise ValueError(f"n_neighbors must be a positive integer, got {k!r}.")
-    if est.order not in (0, 1):
-        raise ValueError(f"order must be 0 (local constant) or 1 (local linear), got {est.order!r}.")
-    if not isinstance(est.ridge, numbers.Real) or not est.ridge >= 0:
-        raise ValueError(f"ridge must be a non-negative number, got {est.ridge!r}.")
-    if est.radius is not None and (not isinstance(est.radius, numbers.Real) or not est.radius > 0):
-        raise ValueError(f"radius must be None or a positive number, got {est.radius!r}.")
-    w = est.theiler_window
-    if isinstance(w, (bool, np.bool_)) or not isinstance(w, numbers.Integral) or w < 0:
-        raise ValueError(f"theiler_window must be a non-negative integer, got {w!r}.")
 
 
 def _workers(n_jobs):
@@ -107,6 +95,16 @@ class LocalLinearDelayMap(RegressorMixin, BaseEstimator):
     ((1, 2), (1,))
     """
 
+    _parameter_constraints: ClassVar[dict] = {
+        "n_neighbors": [Interval(numbers.Integral, 1, None, closed="left")],
+        "radius": [Interval(numbers.Real, 0, None, closed="neither"), None],
+        "order": [Options(numbers.Integral, {0, 1})],
+        "ridge": [Interval(numbers.Real, 0, None, closed="left")],
+        "theiler_window": [Interval(numbers.Integral, 0, None, closed="left")],
+        # 0 is refused by check_params (with what to pass instead)
+        "n_jobs": [numbers.Integral, None],
+    }
+
     def __init__(self, n_neighbors=30, *, radius=None, order=1, ridge=1e-3, theiler_window=0,
                  n_jobs=None):
         self.n_neighbors = n_neighbors
@@ -130,13 +128,10 @@ class LocalLinearDelayMap(RegressorMixin, BaseEstimator):
         -------
         self : LocalLinearDelayMap
         """
-        _check_params(self)
+        self._validate_params()
+        check_params(n_jobs=self.n_jobs)
         X, y = validate_data(self, X, y, y_numeric=True, dtype=np.float64)
         y = np.asarray(y, dtype=np.float64)
-        if self.n_jobs is not None and (not isinstance(self.n_jobs, numbers.Integral)
-                                        or self.n_jobs == 0):
-            raise ValueError(f"n_jobs must be None, -1 or a positive integer, got "
-                             f"{self.n_jobs!r}.")
         self.fit_X_ = X
         self.fit_y_ = y
         self.x_scaler_ = Standardiser.fit(X)
@@ -163,7 +158,7 @@ class LocalLinearDelayMap(RegressorMixin, BaseEstimator):
 
     def _maps(self, X, query_index, n_jobs=None):
         check_is_fitted(self)
-        _check_params(self)
+        self._validate_params()  # set_params may have changed them since fit
         X = validate_data(self, X, dtype=np.float64, reset=False)
         n, p = X.shape
         if query_index is not None:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numbers
 import warnings
+from typing import ClassVar
 
 import numpy as np
 import pandas as pd
@@ -22,6 +23,7 @@ from scipy.stats import rankdata
 from sklearn.base import BaseEstimator, RegressorMixin, clone
 from sklearn.model_selection import TimeSeriesSplit, check_cv
 from sklearn.pipeline import Pipeline
+from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from skdelay._checks import check_params, check_positive_int, check_random_state, check_series
@@ -399,6 +401,27 @@ class DelaySelectorCV(RegressorMixin, BaseEstimator):
     (True, True)
     """
 
+    _parameter_constraints: ClassVar[dict] = {
+        "estimator": [HasMethods(["fit", "predict"]), None],
+        # the grids' contents (positive integers) are checked by as_grid
+        "m": [Interval(numbers.Integral, 1, None, closed="left"), "array-like", None],
+        "tau": [Interval(numbers.Integral, 1, None, closed="left"), "array-like", None],
+        "cv": ["cv_object", None],
+        "n_queries": [Interval(numbers.Integral, 1, None, closed="left"), None],
+        "theiler_window": [StrOptions({"auto"}), Interval(numbers.Integral, 0, None,
+                                                          closed="left")],
+        "equal_neighbourhood": ["boolean", StrOptions({"none", "segment", "radius"})],
+        "search": [StrOptions({"auto", "tree", "candidates", "exact"})],
+        "n_candidates": [Interval(numbers.Integral, 1, None, closed="left"), None],
+        "refine": ["boolean"],
+        "dip_level": [Interval(numbers.Real, 0, 1, closed="right")],
+        "progress": ["boolean"],
+        "random_state": ["random_state", np.random.Generator],
+        # 0 is refused by check_params (with what to pass instead)
+        "n_jobs": [numbers.Integral, None],
+        "verbose": ["verbose"],
+    }
+
     def __init__(self, estimator=None, *, m=None, tau=None, cv=None, n_queries=None,
                  theiler_window="auto", equal_neighbourhood=False, search="auto",
                  n_candidates=None, refine=True, dip_level=1 / 3, progress=False,
@@ -503,8 +526,9 @@ class DelaySelectorCV(RegressorMixin, BaseEstimator):
         NoDipWarning
             When no ``m`` has a significant dip (``delay_`` is then NaN).
         """
-        X, y = validate_data(self, X, y, y_numeric=True, dtype=np.float64)
+        self._validate_params()
         check_params(n_jobs=self.n_jobs)
+        X, y = validate_data(self, X, y, y_numeric=True, dtype=np.float64)
         y = np.asarray(y, dtype=np.float64)
         n, n_lags = X.shape
         ms, taus = self._grid(n_lags)
@@ -514,8 +538,6 @@ class DelaySelectorCV(RegressorMixin, BaseEstimator):
         if np.ptp(X) == 0:
             raise ValueError(f"X is constant (every value equals {float(X.flat[0])!r}); a delay "
                              "cannot be read from a constant signal - check the recording channel.")
-        if self.n_queries is not None:
-            check_positive_int(self.n_queries, name="n_queries")
         if self.estimator is not None and self.cv is None \
                 and not isinstance(self.estimator, LocalLinearDelayMap):
             raise ValueError(

@@ -241,3 +241,33 @@ def test_delay_selector_bad_input(mg30):
         DelaySelectorCV(m=2, tau=5).fit(Xn, y)
     with pytest.raises(ValueError, match="sample"):
         DelaySelectorCV(m=2, tau=5).fit(X[:2], y[:2])
+
+
+@pytest.mark.parametrize(("params", "name"), [
+    ({"search": "kd"}, "search"), ({"dip_level": 0.0}, "dip_level"), ({"refine": "yes"}, "refine"),
+    ({"n_queries": 0}, "n_queries"), ({"theiler_window": -1}, "theiler_window"),
+    ({"equal_neighbourhood": "all"}, "equal_neighbourhood"), ({"n_candidates": 0}, "n_candidates"),
+    ({"estimator": "knn"}, "estimator"), ({"random_state": "x"}, "random_state"),
+    ({"progress": 2}, "progress"), ({"m": 0}, "m"),
+])
+def test_delay_selector_refuses_a_bad_parameter_before_any_work(mg30, params, name, monkeypatch):
+    # declared in _parameter_constraints and checked first: "search" and "n_candidates" were
+    # checked only on the local-model path, "dip_level" only after the whole scan
+    import skdelay._selection as sel
+
+    def no_scan(*args, **kwargs):
+        raise AssertionError("the scan started")
+
+    monkeypatch.setattr(sel, "scan_series", no_scan)
+    X, y = lagged_windows(mg30[:500], 20)
+    with pytest.raises(ValueError, match=f"The '{name}' parameter of DelaySelectorCV"):
+        DelaySelectorCV(**{"m": 2, "tau": 5, **params}).fit(X, y)
+
+
+def test_delay_selector_takes_every_documented_parameter_value(mg30):
+    X, y = lagged_windows(mg30[:3000], 40)
+    for params in ({"equal_neighbourhood": "segment", "theiler_window": 0},
+                   {"random_state": np.random.default_rng(0), "search": "exact"},
+                   {"cv": 3, "estimator": LocalLinearDelayMap(n_neighbors=20)}):
+        sel = DelaySelectorCV(m=2, tau=range(24, 37), **params).fit(X, y)
+        assert abs(sel.delay_ - 30) <= 1, (params, sel.delay_)
