@@ -35,7 +35,7 @@ import pandas as pd
 
 from skdelay import forecast_error_curve, locate_dips
 from skdelay.datasets import LASER_BITS, LASER_DYNAMICAL_NOISE, LASER_MEASUREMENT_NOISE
-from skdelay.dynamics import minimal_embedding
+from skdelay.dynamics import SpectrumOptions, minimal_embedding
 from skdelay.model_selection import ModelOptions
 from skdelay.systems import CO2LaserFeedback, measure
 
@@ -93,8 +93,9 @@ def main(argv=None):
             taus = {int(m): int(dips.loc[m, "tau_best"]) for m in dips.index}
             length = min(args.n // 8, 10_000)
             control = control_records(preset, delay, length, seed=args.seed + delay)
-            res = minimal_embedding(x, tau=taus, m_max=5, model=DEMO_MODEL, flow=True,
-                                    n_spectrum_steps=min(args.n, args.spectrum_steps),
+            res = minimal_embedding(x, tau=taus, m_max=5, model=DEMO_MODEL,
+                                    spectrum=SpectrumOptions(
+                                        n_steps=min(args.n, args.spectrum_steps), flow=True),
                                     control=control, random_state=args.seed)
             ctrl, bands = res.table.attrs["control"], res.table.attrs["bands"]
             dt = time.perf_counter() - t0

@@ -25,7 +25,7 @@ from ._checks import check_params, check_positive_int, check_series, resolve_sam
 from ._correlation import autocorrelation, mutual_information, revival_peak
 from ._dips import DIP_ALPHA, locate_dips
 from ._embedding import required_lags
-from ._faithful import DEFAULT_RUN, minimal_embedding
+from ._faithful import DEFAULT_RUN, FreeRunOptions, SpectrumOptions, minimal_embedding
 from ._io import atomic_directory, write_json
 from ._iterate import progress_bars
 from ._model import ModelOptions
@@ -666,10 +666,11 @@ def analyze_series(series, options=None, *, quick=False, random_state=0, n_jobs=
     stages = {}
     with progress_bars(enabled=progress is not None and verbose > 0, timings=stages):
         faithful = minimal_embedding(
-            s_val, tau=tau_of, m_min=m_all[0], m_max=m_all[-1], n_steps=opts.n_run,
-            n_runs=opts.n_runs, model=opts.model, n_exponents=n_exp,
-            max_doublings={mm: int(mm == ms[-1]) for mm in m_all},
-            n_spectrum_steps=min(opts.n_spectrum_steps, s_val.size), flow=opts.flow,
+            s_val, tau=tau_of, m_min=m_all[0], m_max=m_all[-1], model=opts.model,
+            free_runs=FreeRunOptions(n_steps=opts.n_run, n_runs=opts.n_runs),
+            spectrum=SpectrumOptions(
+                n_exponents=n_exp, max_doublings={mm: int(mm == ms[-1]) for mm in m_all},
+                n_steps=min(opts.n_spectrum_steps, s_val.size), flow=bool(opts.flow)),
             sample_dt=dt, random_state=random_state, n_jobs=n_jobs, progress=say)
     timings["models"] = time.perf_counter() - t2
     timings["free_runs"] = stages.get("free_runs", 0.0)

@@ -54,7 +54,8 @@ from ._windows import lagged_windows
 from .classic import noise_reduction
 
 __all__ = ["CRITERIA", "DENOISE", "DENOISE_ABOVE", "MAX_BATCHES", "FaithfulnessResult",
-           "collapse_step", "minimal_embedding", "noise_level"]
+           "FreeRunOptions", "SpectrumOptions", "collapse_step", "minimal_embedding",
+           "noise_level"]
 
 #: The compared properties, in the order of the table.
 CRITERIA = ("histogram", "spectrum", "chi", "support", "lyapunov")
@@ -164,6 +165,102 @@ SUPPORT_FACTOR = 5.0
 #: with :data:`CLIP_TO_RANGE` the values stay within the data's range anyway), or on a
 #: non-finite value.
 RUN_ESCAPE_DISTANCE = 1e6
+
+
+def _positive_or_none(value, name):
+    return None if value is None else check_positive_int(value, name=name)
+
+
+def _per_m(value, name, minimum):
+    """An int (or None) for every ``m``, or a dict ``{m: int}``."""
+    if isinstance(value, dict):
+        return {int(m): None if v is None else check_positive_int(v, name=f"{name}[{m}]",
+                                                                  minimum=minimum)
+                for m, v in value.items()}
+    return None if value is None else check_positive_int(value, name=name, minimum=minimum)
+
+
+@dataclass(frozen=True)
+class FreeRunOptions:
+    """How :func:`minimal_embedding` runs each model and compares the runs with the data.
+
+    Attributes
+    ----------
+    n_steps : int, default=None
+        Length of each compared run (default ``min(len(series) // 8, 10_000)``:
+        eight disjoint data segments of that length, 28 pairs for the bands);
+        at most ``len(series) // 4``.
+    n_runs : int, default=N_RUNS
+        Free runs per model and batch: further batches are drawn while the
+        runs disagree (one within a band, another beyond it), up to
+        :data:`MAX_BATCHES`; the verdict is the median of all runs.
+    chi_m : int, default=None
+        Window length of the cross-prediction vectors (default ``m_max``).
+    denoise : {"auto", True, False}, default="auto"
+        Fit the models (and start their runs, and take their spectra) on
+        noise-reduced data (:data:`DENOISE`); "auto": when the measurement
+        noise estimated from the data exceeds :data:`DENOISE_ABOVE` of their
+        standard deviation.  The runs are always compared with the raw data,
+        observed with the estimated noise.
+    clip_to_range : bool, default=CLIP_TO_RANGE
+        Keep the runs' values within the data's range (see
+        :data:`CLIP_TO_RANGE`); the table's ``clipped`` column counts the
+        clipped steps (transient included) of each model's runs.
+    """
+
+    n_steps: int | None = None
+    n_runs: int = N_RUNS
+    chi_m: int | None = None
+    denoise: bool | str = "auto"
+    clip_to_range: bool = CLIP_TO_RANGE
+
+    def __post_init__(self):
+        object.__setattr__(self, "n_steps", _positive_or_none(self.n_steps, "n_steps"))
+        object.__setattr__(self, "n_runs", check_positive_int(self.n_runs, name="n_runs"))
+        object.__setattr__(self, "chi_m", _positive_or_none(self.chi_m, "chi_m"))
+        if self.denoise not in ("auto", True, False):
+            raise ValueError(f"denoise must be 'auto', True or False, got {self.denoise!r}.")
+        if not isinstance(self.clip_to_range, (bool, np.bool_)):
+            raise TypeError(f"clip_to_range must be True or False, got {self.clip_to_range!r}.")
+
+
+@dataclass(frozen=True)
+class SpectrumOptions:
+    """The Lyapunov spectra :func:`minimal_embedding` takes of its models.
+
+    Attributes
+    ----------
+    n_exponents : int or dict {m: int}, default=None
+        Exponents computed per model (default ``min(D, 30)``).
+    max_doublings : int or dict {m: int}, default=0
+        Double the exponents (up to this many times) while the Kaplan-Yorke
+        sum stays positive (:func:`~skdelay._lyapunov.covering_spectrum`).
+    n_steps : int, default=None
+        Steps of the data along which the spectra are computed (default: all).
+    flow : bool, default=False
+        The data sample a flow: pin the exponent nearest zero (see
+        :func:`~skdelay.dynamics.lyapunov_spectrum`).
+    """
+
+    n_exponents: int | dict | None = None
+    max_doublings: int | dict = 0
+    n_steps: int | None = None
+    flow: bool = False
+
+    def __post_init__(self):
+        object.__setattr__(self, "n_exponents", _per_m(self.n_exponents, "n_exponents", 1))
+        object.__setattr__(self, "max_doublings", _per_m(self.max_doublings, "max_doublings", 0))
+        object.__setattr__(self, "n_steps", _positive_or_none(self.n_steps, "n_steps"))
+        if not isinstance(self.flow, (bool, np.bool_)):
+            raise TypeError(f"flow must be True or False, got {self.flow!r}.")
+
+    def for_m(self, m_values):
+        """``({m: n_exponents or None}, {m: max_doublings})`` for the window lengths."""
+        def spread(value, default):
+            if isinstance(value, dict):
+                return {m: value.get(m, default) for m in m_values}
+            return dict.fromkeys(m_values, value)
+        return spread(self.n_exponents, None), spread(self.max_doublings, 0)
 
 
 @dataclass
@@ -448,10 +545,8 @@ def _minimal_m(table):
 
 
 def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_min=1,
-                      n_steps=None, n_runs=N_RUNS, model=None, n_exponents=None,
-                      max_doublings=0, n_spectrum_steps=None, flow=False, chi_m=None,
-                      sample_dt=1.0, denoise="auto", clip_to_range=CLIP_TO_RANGE,
-                      control=None, random_state=None, n_jobs=None, progress=None):
+                      model=None, free_runs=None, spectrum=None, sample_dt=1.0, control=None,
+                      random_state=None, n_jobs=None, progress=None):
     """Smallest window length ``m`` whose iterated models reproduce the data.
 
     For ``m = m_min .. m_max``: fit ``Pipeline(TwoWindowEmbedding(m, tau_m),
@@ -479,7 +574,7 @@ def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_mi
     :func:`noise_level`, and the high-order differences of the data,
     :func:`skdelay._sampling.white_noise_level`); where that noise is
     resolved and exceeds :data:`DENOISE_ABOVE` of the data's spread the
-    models are fitted on noise-reduced data (``denoise``).  And ``lyapunov``:
+    models are fitted on noise-reduced data (``free_runs.denoise``).  And ``lyapunov``:
     lambda_1 and D_KY have converged against the ``m_max`` model, and the
     ``m_max`` model against ``m_max - 1`` (:data:`LYAPUNOV_TOLERANCE`).
 
@@ -495,43 +590,19 @@ def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_mi
         Delays scanned when ``tau`` is None (must cover the feedback delay).
     m_max, m_min : int, default=5, 1
         Window lengths to test.
-    n_steps : int, default=None
-        Length of each compared run (default ``min(len(series) // 8, 10_000)``:
-        eight disjoint data segments of that length, 28 pairs for the bands);
-        at most ``len(series) // 4``.
-    n_runs : int, default=N_RUNS
-        Free runs per model and batch: further batches are drawn while the
-        runs disagree (one within a band, another beyond it), up to
-        :data:`MAX_BATCHES`; the verdict is the median of all runs.
     model : ModelOptions, default=None
         Neighbourhood size, ridge and Theiler window of the models (None:
         ``ModelOptions()``).
-    n_exponents : int or dict {m: int}, default=None
-        Exponents computed per model (default ``min(D, 30)``).
-    max_doublings : int or dict {m: int}, default=0
-        Double the exponents (up to this many times) while the Kaplan-Yorke
-        sum stays positive (:func:`~skdelay._lyapunov.covering_spectrum`).
-    n_spectrum_steps : int, default=None
-        Steps of the data along which the spectra are computed (default: all).
-    flow : bool, default=False
-        The data sample a flow: pin the exponent nearest zero (see
-        :func:`~skdelay.dynamics.lyapunov_spectrum`).
-    chi_m : int, default=None
-        Window length of the cross-prediction vectors (default ``m_max``).
+    free_runs : FreeRunOptions, default=None
+        Length and number of the free runs, the cross-prediction window,
+        noise reduction and clipping (None: ``FreeRunOptions()``).
+    spectrum : SpectrumOptions, default=None
+        Exponents per model, doublings, steps and the flow's zero exponent of
+        the models' Lyapunov spectra (None: ``SpectrumOptions()``).
     sample_dt : float, default=1.0
         Time per sample (for the power spectra and exponents).
-    denoise : {"auto", True, False}, default="auto"
-        Fit the models (and start their runs, and take their spectra) on
-        noise-reduced data (:data:`DENOISE`); "auto": when the measurement
-        noise estimated from the data exceeds :data:`DENOISE_ABOVE` of their
-        standard deviation.  The runs are always compared with the raw data,
-        observed with the estimated noise.
-    clip_to_range : bool, default=CLIP_TO_RANGE
-        Keep the runs' values within the data's range (see
-        :data:`CLIP_TO_RANGE`); the table's ``clipped`` column counts the
-        clipped steps (transient included) of each model's runs.
     control : list of array-like, default=None
-        Series scored exactly like the runs (their first ``n_steps`` values,
+        Series scored exactly like the runs (their first ``free_runs.n_steps`` values,
         against the same data segments and bands), e.g. independent records of
         the system that generated the data: a perfect model's score, which
         checks that the bands are not too narrow for this record.  Results in
@@ -551,10 +622,11 @@ def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_mi
 
     Examples
     --------
-    >>> from skdelay.dynamics import minimal_embedding
+    >>> from skdelay.dynamics import FreeRunOptions, minimal_embedding
     >>> from skdelay.systems import MackeyGlass
     >>> x = MackeyGlass(tau=17.0).simulate(20000, random_state=0)
-    >>> table, m_d = minimal_embedding(x, tau=17, m_max=3, n_runs=2, random_state=0)
+    >>> table, m_d = minimal_embedding(x, tau=17, m_max=3, free_runs=FreeRunOptions(n_runs=2),
+    ...                                random_state=0)
     >>> list(table.index), m_d in (1, 2, 3, None)
     ([1, 2, 3], True)
     """
@@ -565,20 +637,26 @@ def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_mi
     unit = Standardiser.fit(s).scale
     m_max = check_positive_int(m_max, name="m_max")
     m_min = check_positive_int(m_min, name="m_min", maximum=m_max)
-    n_runs = check_positive_int(n_runs, name="n_runs")
     model = ModelOptions() if model is None else model
-    if not isinstance(model, ModelOptions):
-        raise TypeError(f"model must be a ModelOptions, got {type(model).__name__}.")
+    free_runs = FreeRunOptions() if free_runs is None else free_runs
+    spectrum = SpectrumOptions() if spectrum is None else spectrum
+    for name, value, kind in (("model", model, ModelOptions),
+                              ("free_runs", free_runs, FreeRunOptions),
+                              ("spectrum", spectrum, SpectrumOptions)):
+        if not isinstance(value, kind):
+            raise TypeError(f"{name} must be a {kind.__name__}, got {type(value).__name__}; "
+                            f"pass {name}={kind.__name__}(...).")
+    n_steps, n_runs, chi_m = free_runs.n_steps, free_runs.n_runs, free_runs.chi_m
+    denoise, clip_to_range = free_runs.denoise, free_runs.clip_to_range
     m_values = list(range(m_min, m_max + 1))
     rng = check_random_state(random_state)
     taus = _taus_for(s, m_values, tau, tau_grid, int(rng.randint(2**31)), n_jobs)
-    length = min(s.size // MAX_SEGMENTS, DEFAULT_RUN) if n_steps is None else check_positive_int(
-        n_steps, name="n_steps")
+    length = min(s.size // MAX_SEGMENTS, DEFAULT_RUN) if n_steps is None else n_steps
     if 4 * length > s.size:
         raise ValueError(f"n_steps={length} needs a series of at least {4 * length} samples "
                          f"(four disjoint data segments of the run's length for the reference "
                          f"band); got {s.size}. Pass a smaller n_steps or a longer series.")
-    chi_m = m_max if chi_m is None else check_positive_int(chi_m, name="chi_m")
+    chi_m = m_max if chi_m is None else chi_m
     chi_tau = taus[m_max]
     for m in m_values:
         dim = required_lags(m, taus[m])
@@ -586,9 +664,7 @@ def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_mi
         if s.size < need:
             raise ValueError(f"series has {s.size} samples; m={m}, tau={taus[m]} needs at least "
                              f"{need}. Pass a longer series or smaller m_max / tau.")
-    n_exp = n_exponents if isinstance(n_exponents, dict) else dict.fromkeys(m_values, n_exponents)
-    doublings = (max_doublings if isinstance(max_doublings, dict)
-                 else dict.fromkeys(m_values, max_doublings))
+    n_exp, doublings = spectrum.for_m(m_values)
 
     seed = int(rng.randint(2**31))
     s_units = s / unit
@@ -597,8 +673,6 @@ def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_mi
     reference, bands = _reference_bands(segs, sample_dt=sample_dt, f_max=f_max, chi_m=chi_m,
                              chi_tau=chi_tau, seed=seed)
     window = max(2 * max(taus.values()), 200)
-    if denoise not in ("auto", True, False):
-        raise ValueError(f"denoise must be 'auto', True or False, got {denoise!r}.")
     models = {m: fit_delay_model(s, m, taus[m], model) for m in m_values}
     # the runs are observed like the data, with the noise that the residuals of the largest
     # model imply: the smaller ones can under-estimate it (Mackey-Glass tau = 17, 3e4
@@ -677,9 +751,9 @@ def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_mi
             row.update({kind: float(np.median(v)) for kind, v in scores[level].items()})
             row["undecided"] = ", ".join(_undecided(scores[level], bands))
         k = min(dim, 30) if n_exp[m] is None else min(dim, int(n_exp[m]))
-        spectra[m] = covering_spectrum(models[m], fit_s, n_exponents=k, n_steps=n_spectrum_steps,
+        spectra[m] = covering_spectrum(models[m], fit_s, n_exponents=k, n_steps=spectrum.n_steps,
                                        sample_dt=sample_dt, max_doublings=int(doublings[m]),
-                                       flow=flow, n_jobs=n_jobs)
+                                       flow=spectrum.flow, n_jobs=n_jobs)
         row.update(lambda_1=float(spectra[m].exponents[0]),
                    d_ky=float(spectra[m].kaplan_yorke_dimension),
                    h_ks=float(spectra[m].ks_entropy), n_positive=int(spectra[m].n_positive))

@@ -16,7 +16,7 @@ i.e. about the paper's ``tau + m``).  This module
 
 from __future__ import annotations
 
-from ._faithful import FaithfulnessResult, minimal_embedding
+from ._faithful import FaithfulnessResult, FreeRunOptions, SpectrumOptions, minimal_embedding
 from ._iterate import (
     ModelEscapeError,
     ModelEscapeWarning,
@@ -35,10 +35,12 @@ from ._spectrum import (
 
 __all__ = [
     "FaithfulnessResult",
+    "FreeRunOptions",
     "LyapunovSpectrum",
     "ModelEscapeError",
     "ModelEscapeWarning",
     "OffSupportWarning",
+    "SpectrumOptions",
     "Trajectory",
     "dimension_density",
     "iterate",

@@ -1,5 +1,7 @@
 """Minimal faithful window length from iterated models (Buenner et al. sec. IV)."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -13,7 +15,7 @@ from skdelay._faithful import (
     collapse_step,
 )
 from skdelay._model import ModelOptions
-from skdelay.dynamics import minimal_embedding
+from skdelay.dynamics import FreeRunOptions, SpectrumOptions, minimal_embedding
 
 
 @pytest.fixture(scope="module")
@@ -26,7 +28,8 @@ def mg17():
 
 @pytest.fixture(scope="module")
 def result(mg17):
-    return minimal_embedding(mg17, tau=17, m_max=4, n_steps=8000, n_runs=3, random_state=0)
+    return minimal_embedding(mg17, tau=17, m_max=4, free_runs=FreeRunOptions(n_steps=8000, n_runs=3),
+                             random_state=0)
 
 
 def test_result_holds_everything_it_computed(result):
@@ -92,7 +95,8 @@ def _noisy_linear_delay_process(n=30_000, tau=12, seed=3):
 
 def test_collapsing_runs_are_never_faithful():
     s = _noisy_linear_delay_process()
-    res = minimal_embedding(s, tau=12, m_min=1, m_max=2, n_steps=4000, n_runs=2,
+    res = minimal_embedding(s, tau=12, m_min=1, m_max=2,
+                            free_runs=FreeRunOptions(n_steps=4000, n_runs=2),
                             model=ModelOptions(n_neighbors=60), random_state=0)
     for m in (1, 2):
         assert not res.table.loc[m, "faithful"]
@@ -116,8 +120,9 @@ def test_collapse_detector_fixed_point_and_periodic_orbit(mg17):
 
 
 def test_faithful_at_m_implies_faithful_from_m_on(mg17):
-    tab, m_d = minimal_embedding(mg17[:20_000], tau=17, m_min=1, m_max=3, n_steps=4000,
-                                 n_runs=2, random_state=5)
+    tab, m_d = minimal_embedding(mg17[:20_000], tau=17, m_min=1, m_max=3,
+                                 free_runs=FreeRunOptions(n_steps=4000, n_runs=2),
+                                 random_state=5)
     if m_d is not None:
         assert tab.loc[m_d, "faithful"]
         assert (tab.loc[m_d:, "faithful"] | tab.loc[m_d:, "marginal"]).all()
@@ -130,18 +135,24 @@ def test_tau_per_m_and_errors(mg17):
     with pytest.raises(ValueError, match="needs at least"):
         minimal_embedding(mg17[:300], tau=100, m_max=2)
     with pytest.raises(ValueError, match="four disjoint data segments"):
-        minimal_embedding(mg17[:8000], tau=17, m_max=2, n_steps=3000)
+        minimal_embedding(mg17[:8000], tau=17, m_max=2, free_runs=FreeRunOptions(n_steps=3000))
     with pytest.raises(TypeError, match="ModelOptions"):
         minimal_embedding(mg17[:8000], tau=17, m_max=2, model={"n_neighbors": 10})
-    tab, _ = minimal_embedding(mg17[:12_000], tau={1: 16, 2: 17}, m_max=2, n_steps=3000,
-                               n_runs=2, random_state=1)
+    with pytest.raises(TypeError, match="free_runs must be a FreeRunOptions"):
+        minimal_embedding(mg17[:8000], tau=17, m_max=2, free_runs={"n_runs": 2})
+    with pytest.raises(ValueError, match="n_runs must be >= 1"):
+        FreeRunOptions(n_runs=0)
+    with pytest.raises(ValueError, match=r"n_exponents\[2\] must be >= 1"):
+        SpectrumOptions(n_exponents={2: 0})
+    tab, _ = minimal_embedding(mg17[:12_000], tau={1: 16, 2: 17}, m_max=2,
+                               free_runs=FreeRunOptions(n_steps=3000, n_runs=2), random_state=1)
     assert tab["tau"].tolist() == [16, 17]
     assert np.isfinite(tab["chi"]).all()
 
 
 def test_default_delays_from_forecast_error_scan(mg17):
     tab, _ = minimal_embedding(mg17[:12_000], tau_grid=range(8, 28), m_min=2, m_max=3,
-                               n_steps=3000, n_runs=2, random_state=0)
+                               free_runs=FreeRunOptions(n_steps=3000, n_runs=2), random_state=0)
     assert tab["tau"].between(16, 18).all()
 
 
@@ -158,7 +169,8 @@ def test_minimal_m_is_stable_against_measurement_noise():
     found = {}
     for noise in (0.0, 0.01, 0.05):
         x = measure(clean, noise=noise, random_state=12) if noise else clean
-        res = minimal_embedding(x, tau=23, m_min=1, m_max=4, n_runs=3, random_state=13)
+        res = minimal_embedding(x, tau=23, m_min=1, m_max=4, free_runs=FreeRunOptions(n_runs=3),
+                                random_state=13)
         print(noise, res.noise_level, res.denoised)  # the runs behind each verdict
         print(res.table.drop(columns="status").round(4).to_string())
         print(res.table["status"].to_string())
@@ -180,10 +192,11 @@ def mg17_noisy():
 def test_noise_is_estimated_and_large_noise_is_reduced_before_the_fits(mg17_noisy):
     """Errors in variables: 5 % noise on the inputs shrinks the local slopes, so models
     fitted on the raw data are too regular; fitted on noise-reduced data they are not."""
-    kw = {"tau": 17, "m_min": 1, "m_max": 3, "n_steps": 3000, "n_runs": 1, "random_state": 0}
-    res = minimal_embedding(mg17_noisy[0.05], **kw)
-    raw = minimal_embedding(mg17_noisy[0.05], denoise=False, **kw)
-    small = minimal_embedding(mg17_noisy[0.005], **kw)
+    kw = {"tau": 17, "m_min": 1, "m_max": 3, "random_state": 0}
+    runs = FreeRunOptions(n_steps=3000, n_runs=1)
+    res = minimal_embedding(mg17_noisy[0.05], free_runs=runs, **kw)
+    raw = minimal_embedding(mg17_noisy[0.05], free_runs=replace(runs, denoise=False), **kw)
+    small = minimal_embedding(mg17_noisy[0.005], free_runs=runs, **kw)
     for r in (res, raw, small):
         print(r.noise_level, r.denoised)
         print(r.table.drop(columns="status").round(4).to_string())
@@ -204,7 +217,7 @@ def test_noise_is_estimated_and_large_noise_is_reduced_before_the_fits(mg17_nois
                                                            ("ref", small))}
     assert abs(lam["nr"] - lam["ref"]) < 0.5 * abs(lam["raw"] - lam["ref"])
     with pytest.raises(ValueError, match="denoise"):
-        minimal_embedding(mg17_noisy[0.05], denoise="yes", **kw)
+        replace(runs, denoise="yes")
 
 
 @pytest.mark.parametrize("denoised", [True, False])
@@ -275,9 +288,10 @@ def test_control_records_of_the_true_system_lie_within_the_bands(result, mg17):
         return [measure(MackeyGlass(tau=tau).simulate(8000, random_state=40 + r),
                         noise=0.005, random_state=50 + r) for r in range(3)]
 
-    same = minimal_embedding(mg17, tau=17, m_min=2, m_max=2, n_steps=8000, n_runs=1,
+    one = FreeRunOptions(n_steps=8000, n_runs=1)
+    same = minimal_embedding(mg17, tau=17, m_min=2, m_max=2, free_runs=one,
                              control=records(17.0), random_state=0).table.attrs
-    other = minimal_embedding(mg17, tau=17, m_min=2, m_max=2, n_steps=8000, n_runs=1,
+    other = minimal_embedding(mg17, tau=17, m_min=2, m_max=2, free_runs=one,
                               control=records(23.0), random_state=0).table.attrs
     print(same["control"], other["control"], same["bands"])
     assert all(same["control_pass"].values()), same["control"]
