@@ -65,6 +65,14 @@ def plot_forecast_error(curve, *, ax=None, logy=False):
     >>> len(fig.axes[0].lines)
     2
     """
+    import pandas as pd
+
+    if not isinstance(curve, pd.DataFrame):
+        raise TypeError(f"curve must be a pandas DataFrame with one column per m (index tau), "
+                        f"got {type(curve).__name__}; pass forecast_error_curve(...) or "
+                        "DelaySelectorCV(...).fit(X, y).forecast_error_.")
+    if curve.shape[1] == 0:
+        raise ValueError("curve has no columns; give one column of errors per m.")
     fig, ax = _axes(ax)
     for col in curve.columns:
         ax.plot(curve.index, curve[col], marker=".", label=f"m = {col}")
@@ -178,10 +186,18 @@ def plot_lyapunov_spectrum(spectra, *, tau=None, rescaled=False, ax=None):
     from ._spectrum import rescale_spectrum
 
     data = _as_mapping(spectra, "spectrum")
-    fig, ax = _axes(ax)
+    exponents = {}
     for label, spec in data.items():
-        lam = np.asarray(getattr(spec, "exponents", spec), dtype=float).reshape(-1)
-        lam = np.sort(lam)[::-1]
+        try:
+            lam = np.asarray(getattr(spec, "exponents", spec), dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            lam = np.array([np.nan])
+        if lam.size == 0 or not np.all(np.isfinite(lam)):
+            raise ValueError(f"spectrum {label!r} must hold finite exponents (a "
+                             f"LyapunovSpectrum or an array of numbers), got {spec!r:.60}.")
+        exponents[label] = np.sort(lam)[::-1]
+    fig, ax = _axes(ax)
+    for label, lam in exponents.items():
         if rescaled:
             t = tau.get(label) if isinstance(tau, dict) else tau
             if t is None:
@@ -265,6 +281,11 @@ def plot_correlation_dimension(result, *, ax=None):
     >>> len(fig.axes[0].lines) >= 3
     True
     """
+    from .classic import CorrelationDimension
+
+    if not isinstance(result, CorrelationDimension):
+        raise TypeError(f"result must be a CorrelationDimension, got {type(result).__name__}; "
+                        "pass skdelay.classic.correlation_dimension(series, ...).")
     fig, ax = _axes(ax)
     slopes = result.local_slopes
     for col in slopes.columns:
@@ -300,6 +321,12 @@ def plot_divergence(result, *, ax=None):
     >>> len(plot_divergence(res).axes[0].lines)
     2
     """
+    from .classic import MaximalLyapunovExponent
+
+    if not isinstance(result, MaximalLyapunovExponent):
+        raise TypeError(f"result must be a MaximalLyapunovExponent, got "
+                        f"{type(result).__name__}; pass "
+                        "skdelay.classic.maximal_lyapunov_exponent(series, dim=...).")
     fig, ax = _axes(ax)
     S = result.divergence
     ax.plot(S.index, S.to_numpy(), marker=".", label="S(t)")

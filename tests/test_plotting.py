@@ -79,3 +79,21 @@ def test_missing_matplotlib_says_how_to_install(monkeypatch):
     monkeypatch.setitem(sys.modules, "matplotlib.pyplot", None)
     with pytest.raises(ImportError, match=r"pip install skdelay\[plot\]"):
         plotting.plot_histograms(np.arange(10.0))
+
+
+@pytest.mark.parametrize("call, error, needle", [
+    (lambda p: p.plot_forecast_error(np.ones(5)), TypeError, "must be a pandas DataFrame"),
+    (lambda p: p.plot_forecast_error(pd.DataFrame()), ValueError, "has no columns"),
+    (lambda p: p.plot_correlation_dimension(np.ones(5)), TypeError,
+     "must be a CorrelationDimension"),
+    (lambda p: p.plot_divergence("S"), TypeError, "must be a MaximalLyapunovExponent"),
+    (lambda p: p.plot_lyapunov_spectrum(None), ValueError, "finite exponents"),
+    (lambda p: p.plot_lyapunov_spectrum({"a": [0.1, np.nan]}), ValueError, "finite exponents"),
+])
+def test_wrong_inputs_are_refused_before_a_figure_is_made(call, error, needle):
+    # these raised AttributeError ("'ndarray' object has no attribute 'local_slopes'") or
+    # drew a NaN line into a new, orphaned figure
+    before = len(plt.get_fignums())
+    with pytest.raises(error, match=needle):
+        call(plotting)
+    assert len(plt.get_fignums()) == before
