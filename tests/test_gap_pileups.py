@@ -48,6 +48,20 @@ def test_off_indicator_must_exceed_every_clean_runs_own_gap():
     assert set(off_indicators(prob, ev)) == {"segment"}
 
 
+def test_the_record_gap_must_exceed_every_clean_runs_own_gap_too():
+    # the whole-record threshold follows the indicators' rule: the electro-optic control in
+    # ADC counts of benchmark seed 16.5e6 (leave-one-out gaps, rounded) had a gap of 8.65
+    # against the median rule's 5 + 3 x 0.97 = 7.9, and one clean run reached 15.8
+    from skdelay.gap._diagnose import MIN_GAP, no_gap_threshold
+
+    heavy = [0.0, 0.88, 0.89, 1.04, 5.53, 15.8]
+    assert no_gap_threshold(heavy, MIN_GAP) == pytest.approx(15.8)
+    assert no_gap_threshold(heavy, MIN_GAP) > 8.65
+    # a quiet null keeps the median rule
+    quiet = [0.42, 0.65, 0.75, 1.28, 1.39, 5.79]
+    assert no_gap_threshold(quiet, MIN_GAP) == pytest.approx(MIN_GAP + 3.0 * np.median(quiet))
+
+
 def test_clipped_ikeda_record_is_found_with_its_level():
     """Ikeda at step 0.5 is nearly white; 1 % clipped at the low end moved its histogram
     little (the gap was near the no-gap threshold), the tied samples stand out."""
