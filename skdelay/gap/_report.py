@@ -31,7 +31,11 @@ class GapReport:
     best_effect : str or None
         Effect that explains the gap; None when real and simulated data are
         indistinguishable within the sim-vs-sim spread (``significance``) or
-        when no candidate removes a substantial part of the gap.
+        when no candidate removes a substantial part of the gap.  Where the
+        forecast-error dip is the only significant discrepancy
+        (``significance["dip_only"]``), only a fit that moves the model's dip
+        onto the record's explains it, whatever share of the (no-gap level)
+        gap it removes; ``info["dip_led"]`` is then True.
     effects : pandas.DataFrame
         One row per candidate, best first: ``effect``, ``params`` (fitted
         values), ``gap_before``, ``gap_after``, ``shrink``
@@ -115,7 +119,7 @@ class GapReport:
     def from_problem(cls, problem, *, table, where, significance, best_effect, combined, after,
                      lacking=(),
                      explained="no gap", reasons=(), checks=(), cv_shrink=None,
-                     cross_validated=False, tie=None, small_rest=False):
+                     cross_validated=False, tie=None, small_rest=False, dip_led=False):
         """Assemble the report from a solved :class:`GapProblem`."""
         from ._where import localise
 
@@ -147,7 +151,7 @@ class GapReport:
                 "lines": [(ln.frequency, ln.amplitude, ln.z) for ln in problem.lines],
                 "sim_dip_centres": [d.centre for d in problem.sim_dips],
                 "second_dips": [d.centre for d in problem.second_dips],
-                "small_rest": bool(small_rest), **info_cv}
+                "small_rest": bool(small_rest), "dip_led": bool(dip_led), **info_cv}
         return cls(best_effect=best_effect, effects=table, where=where, gap_before=gap_before,
                    gap_after=gap_after, shrink=1.0 - max(gap_after, 0.0) / gap_before
                    if gap_before > 0 else 0.0, significance=significance, combined=combined,
@@ -313,6 +317,12 @@ class GapReport:
         ok = self.effects[self.effects.status == "ok"]
         row = self.effects.iloc[0]
         cv = " cross-validated" if self.info.get("cross_validated") else ""
+        if self.best_effect is None and s.get("dip_only"):
+            which = (f"None of the library's effects moves {self._dip_words()}, the only "
+                     "discrepancy beyond chance.")
+            far = (f"The gap, {self.gap_before:.3g}, is within the no-gap threshold {thr:.3g}, "
+                   "so the share of it an effect removes is no evidence either way.")
+            return f"{where} {which} {far}"
         if self.best_effect is None:
             best = (f" (the best, {ok.iloc[0]['effect']}, removes "
                     f"{100 * max(ok.iloc[0]['shrink'], 0):.0f} %)") if len(ok) else ""
@@ -345,11 +355,32 @@ class GapReport:
                      f"({100 * self.shrink:.0f} %); the rest lies outside the effect library.")
         if self.tie and not self.tie["decided"]:
             which = f"{which} {self._tie_words()}"
+        if self.info.get("dip_led"):
+            if self.explained != "fully":
+                n = len(self.reasons)
+                which = (f"{label} ({row['description']}) accounts for the dip, but {n} "
+                         f"check{'s' if n > 1 else ''} still fail{'' if n > 1 else 's'} "
+                         "(details below).")
+            return f"{where} {which} {self._dip_led_words(thr)}"
         state = "within" if self.gap_after <= thr else "still above"
         far = (f"With {'them' if len(names) > 1 else 'it'} the gap falls from "
                f"{self.gap_before:.3g} to {self.gap_after:.3g} ({100 * self.shrink:.0f} % "
                f"removed{cv}), {state} the no-gap threshold {thr:.3g}.")
         return f"{where} {which} {far}"
+
+    def _dip_words(self):
+        """The model's and the record's forecast-error dip, in time units (a phrase)."""
+        dt, tu = self.info["sample_dt"], self._time_unit()
+        return (f"the model's forecast-error dip (at {fmt_value(self.info['dip_sim'] * dt)} "
+                f"{tu}) onto the record's (at {fmt_value(self.info['dip_real'] * dt)} {tu})")
+
+    def _dip_led_words(self, thr):
+        """How a fit that moves the dip explains a record whose only evidence is the dip."""
+        state = "stays within" if self.gap_after <= thr else "rises above"
+        return (f"Its fit moves {self._dip_words()}; the gap, {self.gap_before:.3g} before and "
+                f"{self.gap_after:.3g} after, {state} the no-gap threshold {thr:.3g}, so the "
+                f"dip, not the share of the gap removed ({100 * self.shrink:.0f} %), is the "
+                "evidence.")
 
     def _small_rest(self):
         """Is what the effects leave too small to be called a gap, with only broadband
@@ -381,6 +412,13 @@ class GapReport:
         if len(self.where):
             text.append("Largest discrepancies: " + self._where_phrase(self.where) + ".")
         ok = self.effects[self.effects.status == "ok"]
+        if self.best_effect is None and s.get("dip_only"):
+            text.append(f"No candidate effect moves {self._dip_words()}, the record's only "
+                        "discrepancy beyond chance; the cause lies outside the effect library "
+                        "or in the model itself.")
+            if self.reasons[1:] or len(self.where):
+                text.append(self._remaining())
+            return " ".join(text)
         if self.best_effect is None:
             best = ok.iloc[0] if len(ok) else None
             text.append(
@@ -394,7 +432,11 @@ class GapReport:
         row = self.effects.iloc[0]
         desc = EFFECTS[row["effect"]].description if row["effect"] in EFFECTS else row["effect"]
         names = [row["effect"]] + ([self.combined["effects"][1]] if self.combined else [])
-        if self.explained == "fully":
+        if self.info.get("dip_led"):
+            text.append(f"{'Best explanation' if self.explained == 'fully' else 'Partly explained by'}"
+                        f": {row['effect']} ({desc}): {row['description']}. "
+                        + self._dip_led_words(s["threshold"]))
+        elif self.explained == "fully":
             text.append(f"Best explanation: {row['effect']} ({desc}): {row['description']}. "
                         f"It removes {100 * row['shrink']:.0f}% of the gap "
                         f"({row['gap_before']:.3g} -> {row['gap_after']:.3g}).")
