@@ -275,28 +275,47 @@ class GapReport:
                 f"average and {b} {np.mean(gb):.3g} (difference {t['difference']:.3g} +- "
                 f"{t['se']:.2g}")
         world = t.get("runner_up_world")
+        seen = ("" if world is None else
+                f"; on records simulated with {b} as the truth the difference is "
+                f"{np.mean(world['runner_up']):.2g} on average, at most "
+                f"{world['bound']:.2g} on one more such record")
+        held = t.get("held_out")
+        if held:  # only one of the two explained the record in-sample (_held_out_tie)
+            (sa, ga0), (sb, gb0) = held[a], held[b]
+            why_asked = (f"{a} and {b} remove about as much of the held-out halves "
+                         f"({100 * sa:.0f} % and {100 * sb:.0f} %), while in-sample they "
+                         f"leave gaps of {ga0:.3g} and {gb0:.3g}, against a no-gap threshold of "
+                         f"{self.significance['threshold']:.3g}")
+            if t["decided"]:
+                return (f"The effect {a} is preferred to {b}: {why_asked}; {gaps}, t = "
+                        f"{t['t']:.2g} above {t['critical']:.2g}){seen}.")
+            return (f"The effect {b} cannot be ruled out: {why_asked}; {gaps}, "
+                    f"{GapReport._undecided_why(t, a, b)}, so this record cannot tell {a} from "
+                    f"{b}; a longer record may.")
         if t["decided"]:
-            seen = ("" if world is None else
-                    f"; on records simulated with {b} as the truth the difference is "
-                    f"{np.mean(world['runner_up']):.2g} on average, at most "
-                    f"{world['bound']:.2g} on one more such record")
             return (f"The {kind} {a} are preferred to {b}, which also explain"
                     if pair else
                     f"The effect {a} is preferred to {b}, which also explains") + (
                 f" the record in-sample: {gaps}, t = {t['t']:.2g} above "
                 f"{t['critical']:.2g}){seen}.")
+        return (f"The {kind} {b} {'do' if pair else 'does'} as well: {gaps}, "
+                f"{GapReport._undecided_why(t, a, b)}, so this record cannot tell {a} from {b}; "
+                "a longer record may.")
+
+    @staticmethod
+    def _undecided_why(t, a, b):
+        """Why an undecided tie test could not separate ``a`` (ahead) from ``b``."""
+        world = t.get("runner_up_world")
         if world is None:
-            why = f"t = {t['t']:.2g} within {t['critical']:.2g})"
-        else:  # the paired test separated them (a first); the candidates' worlds did not
-            diff = world["difference"]
-            why = (f"t = {t['t']:.2g} above {t['critical']:.2g}), but "
-                   + (f"records simulated with {b} as the truth show differences up to "
-                      f"{world['bound']:.2g} in favour of {a}"
-                      if diff <= world["bound"] else
-                      f"records simulated with {a} as the truth favour it by at least "
-                      f"{world['better_bound']:.2g}, more than this record's {diff:.2g}"))
-        return (f"The {kind} {b} {'do' if pair else 'does'} as well: {gaps}, {why}, so "
-                f"this record cannot tell {a} from {b}; a longer record may.")
+            return f"t = {t['t']:.2g} within {t['critical']:.2g})"
+        # the paired test separated them (a first); the candidates' worlds did not
+        diff = world["difference"]
+        return (f"t = {t['t']:.2g} above {t['critical']:.2g}), but "
+                + (f"records simulated with {b} as the truth show differences up to "
+                   f"{world['bound']:.2g} in favour of {a}"
+                   if diff <= world["bound"] else
+                   f"records simulated with {a} as the truth favour it by at least "
+                   f"{world['better_bound']:.2g}, more than this record's {diff:.2g}"))
 
     def headline(self):
         """Where the data differ, which effect explains it (or how much of it), how far."""
