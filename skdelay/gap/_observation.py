@@ -214,15 +214,19 @@ class PeriodicInterference(Effect):
         explains best: on Mackey-Glass with dynamical noise (0.0046) and a 0.38-std
         hum (6000 samples), three weak lines the noise raised ranked above the hum
         (z 2.77, harmonic F 118), and the hum was fitted at one of them (0.032 instead
-        of 0.0143, amplitude 0.05) and then missed.  One gap evaluation per line, and
-        per sub-threshold candidate (:func:`skdelay.gap._lines.line_scan`).  A half of a
+        of 0.0143, amplitude 0.05) and then missed.  One gap evaluation per line, per
+        sub-threshold candidate and at the record's most coherent bin
+        (:func:`skdelay.gap._lines.line_scan`).  A half of a
         cross-validation keeps the whole record's choice.
         """
         if getattr(problem, "pinned", {}).get(self.name) is not None:
             return super().search(problem, guess, objective)  # the line is chosen already
         candidates = list(problem.lines) + list(getattr(problem, "line_hints", []))
+        # ... and the record's most coherent bin, which no z gate passes when a hum sits on
+        # one of the dynamics' own peaks (_lines.line_scan's ``start``)
+        extra = getattr(problem, "line_start", None)
         starts = [guess] + [self._line_params(problem, line.frequency)
-                            for line in candidates[1:]]
+                            for line in candidates[1:] + ([extra] if extra else [])]
         if len(starts) > 1:
             guess = starts[int(np.argmin([objective(p) for p in starts]))]
         return super().search(problem, guess, objective)

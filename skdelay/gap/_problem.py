@@ -111,11 +111,14 @@ class GapProblem:
         split use the whole record's: a hum of 3 cycles per record has 1.5
         per half; the line's frequency is a signature read off the whole
         record, its amplitude is what the halves fit and score).
+    line_hints, line_start : list of Line, Line or None
+        With ``lines``: the sub-threshold candidates and the most coherent bin
+        of :func:`skdelay.gap._lines.line_scan` (starting points of a hum fit).
     """
 
     def __init__(self, real, simulator, *, sample_dt=1.0, n_sims=6, search_sims=2,
                  search_length=10_000, random_state=None, n_jobs=None, time_unit=None,
-                 runs=None, scan_dips=True, lines=None, line_hints=None):
+                 runs=None, scan_dips=True, lines=None, line_hints=None, line_start=None):
         self.real = real
         self.time_unit = time_unit
         self.simulator = simulator
@@ -136,9 +139,11 @@ class GapProblem:
         # lines anywhere from a few cycles per record to Nyquist (a 50 Hz hum at 1 MHz)
         # and sub-threshold candidates, where a hum fit may also start (_lines.line_scan)
         if lines is None:
-            self.lines, self.line_hints = line_scan(real, runs, self.sample_dt)
+            self.lines, self.line_hints, self.line_start = line_scan(real, runs,
+                                                                     self.sample_dt)
         else:
             self.lines, self.line_hints = list(lines), list(line_hints or [])
+            self.line_start = line_start
         self.spectrum_view = spectrum_view(real, runs[:2], self.sample_dt) if scan_dips else None
         self.indicators = make_indicators(real, runs, self.sample_dt, self.delay_samples,
                                           self.lines)
@@ -376,7 +381,7 @@ class GapProblem:
             n_sims=len(parent.base), search_sims=len(parent.base),
             search_length=parent.search_length, random_state=0, time_unit=parent.time_unit,
             runs=[x[lo:hi] for x in parent.base], scan_dips=False, lines=parent.lines,
-            line_hints=parent.line_hints)
+            line_hints=parent.line_hints, line_start=parent.line_start)
         # the parent's seeds: the halves' evaluations share the parent's random numbers
         self.sim_seeds, self.effect_seed = parent.sim_seeds, parent.effect_seed
         # where the record's dip lies, and whether it can be placed against the model's, is
