@@ -436,7 +436,7 @@ class GapReport:
                         "discrepancy beyond chance; the cause lies outside the effect library "
                         "or in the model itself.")
             if self.reasons[1:] or len(self.where):
-                text.append(self._remaining())
+                text.append(self._remaining(said=1))
             return " ".join(text)
         if self.best_effect is None:
             best = ok.iloc[0] if len(ok) else None
@@ -446,7 +446,7 @@ class GapReport:
                    if best is not None else "")
                 + "; the cause lies outside the effect library or in the model itself.")
             if self.reasons[1:] or len(self.where):
-                text.append(self._remaining())
+                text.append(self._remaining(said=1))
             return " ".join(text)
         row = self.effects.iloc[0]
         desc = EFFECTS[row["effect"]].description if row["effect"] in EFFECTS else row["effect"]
@@ -486,9 +486,10 @@ class GapReport:
             text.append(self._remaining())
         return " ".join(text)
 
-    def _remaining(self):
-        """What the effects leave unexplained: the reasons and the residual discrepancies."""
-        parts = list(self.reasons)
+    def _remaining(self, said=0):
+        """What the effects leave unexplained: the reasons (but the first ``said``, which the
+        text has given already) and the residual discrepancies."""
+        parts = list(self.reasons[said:])
         where = self.residual_where if self.residual_where is not None else self.where
         if where is not None and len(where):
             parts.append(self._where_phrase(where, 2))
