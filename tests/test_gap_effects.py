@@ -142,6 +142,28 @@ def test_lowpass_gain_at_cutoff_and_roll_off_guess():
     assert roll_off(filtered, noise[1:], 1.0) == pytest.approx(0.05, rel=0.3)
 
 
+@pytest.mark.parametrize("fc", [0.03, 0.1])
+@pytest.mark.parametrize("noise", [0.0, 0.03, 0.06])
+def test_roll_off_under_a_white_floor(fc, noise):
+    """Noise added after the detector flattens the record's high-frequency end: the plain
+    roll-off then reads no filter at all (the search around it cannot reach the cut-off);
+    read under a white floor the cut-off holds at every noise level, and without noise
+    both readings agree."""
+    from skdelay.systems import MackeyGlass
+
+    mg = MackeyGlass()
+    sims = np.array([mg.simulate(8000, random_state=s) for s in (1, 2, 3)])
+    x = mg.simulate(8000, random_state=9)
+    y = get_effect("lowpass").apply(x, {"cutoff": fc})
+    y = y + noise * x.std() * np.random.default_rng(5).standard_normal(x.size)
+    assert roll_off(y, sims, 1.0, floor=True) == pytest.approx(fc, rel=0.15)
+    plain = roll_off(y, sims, 1.0)
+    if noise == 0.0:
+        assert plain == pytest.approx(fc, rel=0.15)
+    elif noise == 0.06:
+        assert plain > 4 * fc  # beyond the factor-4 search window of the low-pass fit
+
+
 def test_clipping_levels_and_pile_up_guess():
     x = smooth_signal()
     sims = smooth_ensemble()

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ._effects import CandidateFailed, NotApplicable, call_hook
+from ._effects import CandidateFailed, Effect, NotApplicable, call_hook
 
 
 @dataclass(frozen=True)
@@ -55,6 +55,27 @@ class FitResult:
 def initial_params(effect, problem):
     """The effect's starting parameters (its :meth:`~Effect.initial` hook)."""
     return dict(call_hook(effect, "initial", problem))
+
+
+def _chain_start(effect, problem, base_chain, guess, objective):
+    """The better start of ``guess`` (read against the clean runs) and the effect's
+    :meth:`~Effect.guess` read against the runs of simulator + ``base_chain``, the model
+    the effect is added to; by ``objective``.  Only for effects whose start is that
+    guess (the default :meth:`~Effect.initial`).
+
+    The clean runs miss what the chain does to them: Ikeda (step 0.5, 6000 samples,
+    benchmark seed 17.2e6), noise of 0.56 std after a low-pass at 0.068: against the
+    clean runs the record's high-frequency floor reads no noise at all (the filter took
+    more power than the noise adds), against the low-pass fitted alone (0.50) it reads
+    0.31, and against a low-pass at 0.068, 0.53.
+    """
+    if not base_chain or type(effect).initial is not Effect.initial:
+        return guess
+    runs = np.array(problem.ensemble(list(base_chain), "fast"))
+    other = dict(call_hook(effect, "guess", problem.real, runs, problem.sample_dt))
+    if other == guess:
+        return guess
+    return min((guess, other), key=objective)
 
 
 class _Objective:
@@ -112,6 +133,7 @@ def _fit(effect, problem, base_chain, final=True):
     try:
         guess = initial_params(effect, problem)
         call_hook(effect, "check", guess, problem.simulator)
+        guess = _chain_start(effect, problem, base_chain, guess, objective)
         params = call_hook(effect, "search", problem, dict(guess), objective)
         if not isinstance(params, dict):
             raise CandidateFailed(f"effect {effect.name!r}: search() returned "

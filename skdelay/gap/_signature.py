@@ -10,7 +10,7 @@ the spectral centroid (time base).
 from __future__ import annotations
 
 import numpy as np
-from scipy import signal
+from scipy import optimize, signal
 
 
 def mean_std(x):
@@ -208,20 +208,38 @@ def onepole_gain2(f, cutoff, sample_dt):
     return (1 - a) ** 2 / (1 - 2 * a * np.cos(2 * np.pi * f * sample_dt) + a**2)
 
 
-def roll_off(real, sims, sample_dt, nperseg=1024):
-    """Cut-off frequency of a one-pole low-pass that best explains the spectral ratio."""
+def roll_off(real, sims, sample_dt, nperseg=1024, floor=False):
+    """Cut-off frequency of a one-pole low-pass that best explains the spectral ratio.
+
+    ``floor=True``: the real spectrum is read as ``c |H(f)|^2 S(f) + n0``, a filtered
+    model plus a white floor (noise added after the detector), with ``c, n0 >= 0``
+    fitted by non-negative least squares in relative error at every trial cut-off.
+    Without the floor, such a record's flat high-frequency end reads as no roll-off at
+    all.
+    """
     n = len(real)
     f, pr = welch_psd(real, sample_dt, nperseg)
     _, ps = ensemble_psd(sims, sample_dt, n, nperseg)
     f, pr, ps = f[1:], pr[1:], ps[1:]
-    keep = ps > 1e-12 * ps.max()
-    f, ratio = f[keep], np.log(pr[keep] / ps[keep])
-    weights = np.sqrt(ps[keep] / ps[keep].max())
+    keep = (ps > 1e-12 * ps.max()) & (pr > 0)
+    f, pr, ps = f[keep], pr[keep], ps[keep]
+    ratio = np.log(pr / ps)
+    weights = np.sqrt(ps / ps.max())
     best, best_err = f[-1], np.inf
     for fc in np.geomspace(f[0], f[-1] * 2, 80):
-        model = np.log(onepole_gain2(f, fc, sample_dt))
-        c = np.sum(weights * (ratio - model)) / np.sum(weights)
-        err = np.sum(weights * (ratio - model - c) ** 2)
+        gain = onepole_gain2(f, fc, sample_dt)
+        if floor:
+            # relative error of c g S + n0 against the real power: linear in (c, n0)
+            a = np.column_stack([gain * ps / pr, 1.0 / pr]) * np.sqrt(weights)[:, None]
+            coef, _ = optimize.nnls(a, np.sqrt(weights))
+            model = coef[0] * gain * ps + coef[1]
+            if not np.all(model > 0):
+                continue
+            err = np.sum(weights * np.log(pr / model) ** 2)
+        else:
+            model = np.log(gain)
+            c = np.sum(weights * (ratio - model)) / np.sum(weights)
+            err = np.sum(weights * (ratio - model - c) ** 2)
         if err < best_err:
             best, best_err = fc, err
     return float(best)
