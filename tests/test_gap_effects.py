@@ -278,3 +278,20 @@ def test_outliers_are_measured_not_fitted_to_the_realised_draws(seed):
     p = rep.effects.set_index("effect").loc["outliers", "params"]
     assert p["rate"] == pytest.approx(hit.mean(), rel=0.01)
     assert p["size"] == pytest.approx(np.median(np.abs(real - x)[hit]) / x.std(), rel=0.1)
+
+
+@pytest.mark.parametrize("name", ["measurement_noise", "lowpass", "clipping", "quantization"])
+def test_a_start_read_against_shorter_runs(name):
+    """An effect fitted on top of a faster time base starts from its signature read against
+    runs shorter than the record (the record is read over as many samples)."""
+    from skdelay.gap._fit import fit_effect
+    from skdelay.gap._problem import GapProblem
+    from skdelay.systems import MackeyGlass
+
+    mg = MackeyGlass()
+    problem = GapProblem(mg.simulate(3000, random_state=813), mg, n_sims=6, random_state=3,
+                         n_jobs=1)
+    chain = [(get_effect("timebase_mismatch"), {"factor": 1.3})]
+    assert len(problem.ensemble(chain, "fast")[0]) < 3000
+    res = fit_effect(get_effect(name), problem, chain)
+    assert res.ok, res.reason

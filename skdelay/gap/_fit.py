@@ -71,8 +71,12 @@ def _chain_start(effect, problem, base_chain, guess, objective):
     """
     if not base_chain or type(effect).initial is not Effect.initial:
         return guess
+    # the fast tier: a chain with a simulation effect is rerun on the search length, so
+    # the record is read over as many samples as the runs have
     runs = np.array(problem.ensemble(list(base_chain), "fast"))
-    other = dict(call_hook(effect, "guess", problem.real, runs, problem.sample_dt))
+    n = min(problem.real.size, runs.shape[1])
+    other = dict(call_hook(effect, "guess", problem.real[:n], runs[:, :n],
+                           problem.sample_dt))
     if other == guess:
         return guess
     return min((guess, other), key=objective)

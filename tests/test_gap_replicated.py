@@ -1,0 +1,45 @@
+"""A record whose gap is its only evidence is compared again with fresh ensembles of
+simulator runs (:data:`skdelay.gap._diagnose.REPLICATES`): one ensemble is one draw."""
+
+import copy
+import dataclasses
+
+import pytest
+
+from skdelay.gap import get_effect
+from skdelay.gap._diagnose import REPLICATES, _fresh_gap, significance
+from skdelay.gap._problem import GapProblem
+from skdelay.systems import MackeyGlass
+
+MG = MackeyGlass()
+N = 3000
+
+
+def test_a_gap_that_one_ensemble_drew_is_not_significant():
+    """The same clean record against an ensemble that happened to lie far from it (its
+    gap set to twice the threshold): the fresh ensembles put it back within the threshold,
+    and nothing is called significant."""
+    problem = GapProblem(MG.simulate(N, random_state=811), MG, n_sims=6, random_state=3,
+                         n_jobs=1)
+    sig = significance(problem)
+    assert not sig["significant"]
+    assert sig["replicated"] is None  # within the threshold: nothing to replicate
+    drawn = copy.copy(problem)
+    drawn.before = dataclasses.replace(problem.before, gap=2.0 * sig["threshold"])
+    again = significance(drawn)
+    assert len(again["replicated"]) == REPLICATES + 1
+    assert again["replicated"][0] == pytest.approx(2.0 * sig["threshold"])
+    assert max(again["replicated"][1:]) < sig["threshold"]
+    assert not again["significant"]
+
+
+def test_a_discrepancy_in_the_record_stays_with_it():
+    """A low-pass in the record leaves about the same gap against fresh ensembles."""
+    x = get_effect("lowpass").apply(MG.simulate(N, random_state=812), {"cutoff": 0.12})
+    problem = GapProblem(x, MG, n_sims=6, random_state=3, n_jobs=1)
+    sig = significance(problem)
+    assert sig["significant"]
+    for k in range(1, REPLICATES + 1):
+        fresh = _fresh_gap(problem, k)
+        assert fresh > sig["threshold"]
+        assert fresh == pytest.approx(sig["gap_before"], rel=0.5)
