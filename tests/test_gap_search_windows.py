@@ -104,6 +104,29 @@ def test_drift_extends_every_parameter_at_the_scan_edge_before_comparing():
     assert fit["end"] / 5.0 - 1.0 == pytest.approx(-0.30, abs=0.03)
 
 
+def test_drift_extends_each_edge_where_the_gap_still_falls():
+    """Both edges of the scan fall outward and the lower one leads nowhere: Ikeda, mu
+    20 -> 24.9 (benchmark seed 17.2e6), gaps 16.7 at -12 % and 21.3 at +12 % (44 at +5 %),
+    114 at -20 % and 0.1 at +20 %; only the lower edge was extended, and mu was fitted at
+    -12 %, the wrong way."""
+    from skdelay.gap import ParameterDrift
+
+    sim = SimpleNamespace(params={"tau": 5.0, "mu": 20.0})
+    problem = SimpleNamespace(simulator=sim)
+    table = {-0.12: 16.7, -0.05: 98.6, -0.02: 80.0, 0.02: 70.0, 0.05: 44.3, 0.12: 21.3,
+             -0.2: 113.9, 0.2: 0.1, 0.3: 13.8}
+
+    def objective(p):
+        rel = p["end"] / 20.0 - 1.0
+        if p["start"] != 20.0:
+            return 1e3  # a constant offset does not fit this record
+        near = min(table, key=lambda r: abs(r - rel))
+        return table[near] + 100.0 * abs(rel - near)  # between the points: worse
+
+    fit = ParameterDrift().search(problem, {}, objective)
+    assert fit["end"] / 20.0 - 1.0 == pytest.approx(0.2, abs=0.03)
+
+
 class _RoughGap:
     """A drift's gap with its minimum at +8 %: smooth on every run of the ensemble
     (``precise``), rough on the scan's two runs (``__call__``: the half steps, where the
