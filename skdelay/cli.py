@@ -456,8 +456,10 @@ def _prepare_gap(args):
             write_json(tmp / "results.json", {
                 "real": str(args.real), "system": system.name, "params": system.params,
                 "sample_dt": args.dt, "best_effect": report.best_effect,
-            }, reasons={"best_effect": "real and simulated data are indistinguishable "
-                                       "within the sim-vs-sim spread"})
+            }, reasons={"best_effect": (
+                "; ".join(["no candidate effect explains the gap", *report.reasons])
+                if report.significance["significant"] else
+                "real and simulated data are indistinguishable within the sim-vs-sim spread")})
         print(summary)
         print(f"report in {args.out}/report.html")
 

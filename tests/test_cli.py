@@ -248,6 +248,17 @@ def test_gap_reports_the_effect(gap_files, tmp_path, capsys):
     assert "periodic_interference" in stdout
 
 
+def test_gap_says_why_no_effect_is_named(gap_files, tmp_path, capsys):
+    """A hum that no candidate can explain is a gap, not "indistinguishable"."""
+    out = tmp_path / "gap"
+    code, _, err = run(["gap", gap_files, "--system", "mackey_glass", "--param", "tau=17",
+                        "--effects", "quantization", "--out", out, "--quiet"], capsys)
+    assert code == 0, err
+    res = json.loads((out / "results.json").read_text())
+    assert res["best_effect"] is None
+    assert res["best_effect_reason"].startswith("no candidate effect explains the gap")
+
+
 @pytest.mark.parametrize(
     "extra, match",
     [

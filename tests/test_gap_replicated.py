@@ -43,3 +43,23 @@ def test_a_discrepancy_in_the_record_stays_with_it():
         fresh = _fresh_gap(problem, k)
         assert fresh > sig["threshold"]
         assert fresh == pytest.approx(sig["gap_before"], rel=0.5)
+
+
+def test_the_report_says_why_a_gap_above_the_threshold_is_no_gap():
+    """The text follows the numbers: a gap above the threshold is not "within" it."""
+    import pandas as pd
+
+    from skdelay.gap import GapReport
+
+    sig = {"threshold": 8.52, "null_median": 1.17, "significant": False,
+           "replicated": [10.24, 0.318, 1.17]}
+    rep = GapReport(best_effect=None, effects=pd.DataFrame(), where=pd.DataFrame(),
+                    gap_before=10.24, gap_after=10.24, shrink=0.0, significance=sig)
+    text = rep.headline()
+    assert "within the no-gap threshold" not in text
+    assert "10.2 exceeds the no-gap threshold 8.52" in text
+    assert "0.318 and 1.17 (median with the first runs' 1.17)" in text
+    low = GapReport(best_effect=None, effects=pd.DataFrame(), where=pd.DataFrame(),
+                    gap_before=3.0, gap_after=3.0, shrink=0.0,
+                    significance=dict(sig, replicated=None))
+    assert "the gap 3 is within the no-gap threshold 8.52" in low.headline()
