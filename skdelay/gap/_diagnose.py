@@ -533,7 +533,7 @@ def _marked(problem, candidates, best, after):
     """Names of the candidates other than ``best`` whose localised mark in the record no
     indicator measures (:meth:`Effect.has_local_mark`: a sub-threshold spectral line).
 
-    None while the gap ``after`` (what the best effect leaves) lies at or below the median
+    Empty while the gap ``after`` (what the best effect leaves) lies at or below the median
     gap of the runs among themselves: a rest that small is what a perfect explanation
     leaves, and a sub-threshold line then calls for nothing.  Electro-optic oscillator,
     delay 19.01 against 20 (6000 samples at step 0.25, benchmark seed 17.3e6): the delay
@@ -542,7 +542,7 @@ def _marked(problem, candidates, best, after):
     A hum was named on top of a single cause on 7 of the 11 seeds 16.3e6-17.3e6 (9
     records).
     """
-    if not after.gap > float(np.median(problem.null_gaps)):
+    if after is None or not after.gap > float(np.median(problem.null_gaps)):
         return set()
     return {e.name for e in candidates if e.name != best and e.has_local_mark(problem)}
 
