@@ -125,6 +125,46 @@ def test_cross_validation_pools_both_folds_unless_an_effect_is_anchored():
         assert params == ({"level": 1.0}, None)
 
 
+def test_a_drift_fits_a_later_part_on_the_ramp_through_the_records_start():
+    """On the record's second half (``anchor`` 0.5-1) the drift's search scans ramps whose
+    line passes through the simulator's value at the record's start, so carried back over
+    the first half the fit starts there; the first half (and a whole record) is fitted as
+    before.  Hence the drift is cross-validated both ways (``_moves_backward``), while an
+    anchored effect whose search ignores the anchor stays forward only."""
+    from skdelay.gap._diagnose import _moves_backward
+
+    drift = get_effect("parameter_drift")
+    v0, e_true = MG.params["a"], 0.23  # a drifting 0.2 -> 0.23 over the record
+    seen = []
+
+    def objective(p):  # the gap of the second half: least on the true line's second half
+        seen.append(p)
+        return 1e4 * ((p["start"] - 0.5 * (v0 + e_true)) ** 2 + (p["end"] - e_true) ** 2)
+
+    part = SimpleNamespace(simulator=MG, anchor=(0.5, 1.0), pinned={drift.name: "a"})
+    fit = drift.search(part, drift.initial(part), objective)
+    assert fit["parameter"] == "a" and fit["end"] == pytest.approx(e_true, rel=0.02)
+    for p in seen:  # every ramp tried lies on a line through v0 at the record's start (the
+        # last is the constant mismatch, the same over the whole record)
+        assert p["start"] == pytest.approx(0.5 * (v0 + p["end"])) or p["start"] == p["end"]
+    assert sum(p["start"] == p["end"] for p in seen) == 1
+    back = drift.transfer(fit, 3000, 3000, backward=True)
+    assert back["start"] == pytest.approx(v0) and back["end"] == pytest.approx(fit["start"])
+    # the first part (and a whole record: no anchor) starts at v0 itself
+    first = SimpleNamespace(simulator=MG, anchor=(0.0, 0.5), pinned={drift.name: "a"})
+    seen.clear()
+    drift.search(first, drift.initial(first), objective)
+    assert all(p["start"] == v0 for p in seen[:6])
+    assert _moves_backward(drift) and not _moves_backward(_AnchoredLevel())
+
+
+def test_the_halves_know_where_they_lie():
+    problem = GapProblem(MG.simulate(N, random_state=7103), MG, n_sims=3, random_state=0)
+    first, second = problem.split()
+    assert first.anchor == (0.0, 0.5) and second.anchor == (0.5, 1.0)
+    assert not hasattr(problem, "anchor")
+
+
 @pytest.fixture(scope="module")
 def half_hum_report():
     """A hum in the first half of the record only: fitted in-sample it removes part of the

@@ -591,13 +591,15 @@ def _worth_cv(results, gap_before):
 
 def _moves_backward(effect):
     """Can the effect be fitted on the second half and carried back to the first?  Not
-    when its parameters are tied to the record's start (``anchored_at_start``: a drift).
+    when its parameters are tied to the record's start (``anchored_at_start``) and its
+    search does not fit a later part on a ramp through that start (``fits_anchored_parts``;
+    the built-in drift does).
     The built-in effects' :meth:`~Effect.transfer` moves parameters backwards
     (``backward=True``); a registered effect whose ``transfer`` is the default (the same
     values: a stationary effect) can be too.  One with a ``transfer`` of its own has only
     the documented forward call.  The others are scored on the forward fold alone."""
     if getattr(effect, "anchored_at_start", False):
-        return False
+        return bool(getattr(effect, "fits_anchored_parts", False))
     return is_builtin(effect) or type(effect).transfer is Effect.transfer
 
 

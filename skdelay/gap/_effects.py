@@ -162,8 +162,11 @@ class Effect:
     signature: ClassVar[tuple] = ()
     #: the parameters are tied to the start of the record (a drift that starts at the
     #: simulator's value): fitted on its second half they would mean something else, so
-    #: cross-validation fits such an effect on the first half only
+    #: cross-validation fits such an effect on the first half only -- unless its search
+    #: honours a part's ``anchor`` (``fits_anchored_parts``: the fractions of the record a
+    #: part spans), fitting a later part on a ramp through the record's start
     anchored_at_start = False
+    fits_anchored_parts = False
 
     def has_local_mark(self, problem):
         """Does the record hold a localised mark of this effect that no indicator of the

@@ -384,6 +384,10 @@ class GapProblem:
             line_hints=parent.line_hints, line_start=parent.line_start)
         # the parent's seeds: the halves' evaluations share the parent's random numbers
         self.sim_seeds, self.effect_seed = parent.sim_seeds, parent.effect_seed
+        # where the part lies in the record, as fractions of its length: an effect tied to
+        # the record's start (a drift from the simulator's value) fits a later part on the
+        # ramp through that start (ParameterDrift.search)
+        self.anchor = (lo / parent.n_samples, hi / parent.n_samples)
         # where the record's dip lies, and whether it can be placed against the model's, is
         # judged on the whole record, as its lines are: it sets where a delay or timebase fit
         # searches, and a half's own dip is twice as noisy.  Mackey-Glass (real delay 16.05
