@@ -403,3 +403,37 @@ def test_halves_score_the_spikes_counted_on_the_whole_record():
     assert rep.best_effect == "outliers", rep.effects[["effect", "shrink", "status"]]
     row = rep.effects.set_index("effect").loc["outliers"]
     assert row["cross_validated"] and row["shrink"] > 0.5
+
+
+def test_a_half_searches_the_delay_near_the_whole_records():
+    """``pin_choices`` pins the whole record's delay; a half searches within
+    SEARCH_HALF_WIDTH samples of it (the window's search was two thirds of a 4e4-sample
+    laser diagnosis) and still finds its own best there."""
+    from skdelay.gap._diagnose import pin_choices
+
+    delay = get_effect("delay_mismatch")
+    parts = (SimpleNamespace(), SimpleNamespace())
+    fit = SimpleNamespace(ok=True, effect="delay_mismatch", params={"tau": 16.3})
+    pin_choices(parts, [fit])
+    assert all(p.pinned == {"delay_mismatch": 16.3} for p in parts)
+
+    class Objective:  # the half's own gap: least at 16.1
+        def __init__(self):
+            self.best, self.seen = (np.inf, None), []
+
+        def __call__(self, p):
+            self.seen.append(p["tau"])
+            gap = 100.0 * (p["tau"] - 16.1) ** 2
+            if gap < self.best[0]:
+                self.best = (gap, dict(p))
+            return gap
+
+        precise = __call__
+
+    half = SimpleNamespace(pinned=parts[0].pinned, sample_dt=0.5, simulator=MG, dip=None)
+    objective = Objective()
+    tau = delay.search(half, {"tau": 17.0}, objective)["tau"]
+    assert tau == pytest.approx(16.1, abs=0.05)
+    width = delay.SEARCH_HALF_WIDTH * 0.5
+    assert min(objective.seen) >= 16.3 - width - 1e-9
+    assert max(objective.seen) <= 16.3 + width + 1e-9

@@ -705,9 +705,10 @@ def _applies(effect, part):
 def pin_choices(parts, results, problem=None):
     """Give the halves of a cross-validation the discrete choices made on the whole record.
 
-    Which parameter drifts, and on which line a hum sits, is chosen on the whole record, as
-    the lines themselves are (:class:`GapProblem` ``lines``); the halves fit and score the
-    drift's ramp, or the hum's amplitude and phase.  Chosen on the first
+    Which parameter drifts, on which line a hum sits, and where in the dip window a delay
+    lies, is chosen on the whole record, as the lines themselves are (:class:`GapProblem`
+    ``lines``); the halves fit and score the drift's ramp, the hum's amplitude and phase,
+    or the delay within a few samples of the whole record's.  Chosen on the first
     half alone, it was often the wrong one: a Mackey-Glass record whose ``b`` drifts by
     3.8 % holds a quarter of the change in its first half (its only discrepancy there was
     the forecast error), the first half chose ``a``, and the ramp continued over the second
@@ -727,6 +728,13 @@ def pin_choices(parts, results, problem=None):
     # shrink read -0.41 and nothing was named
     pins.update({r.effect: float(r.params["frequency"]) for r in results
                  if r.ok and r.effect == "periodic_interference" and "frequency" in r.params})
+    # ... and where in the dip window a delay lies: each half searches a few samples around
+    # the whole record's delay, not the window again.  The window's search (up to
+    # DelayMismatch.MAX_GRID simulations, twice when the dip's best leaves most of the gap)
+    # was two thirds of a diagnosis: the CO2 laser (delay 150 samples, 4e4 samples, a hum)
+    # spent 66 of 112 s in cross-validation, 46 of them in the halves' delay searches
+    pins.update({r.effect: float(r.params["tau"]) for r in results
+                 if r.ok and r.effect == "delay_mismatch" and "tau" in r.params})
     if problem is not None:
         counted = [r for r in results if r.ok and r.effect == "outliers"
                    and {"rate", "size"} <= set(r.params) and Outliers().counted(problem)]

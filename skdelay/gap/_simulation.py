@@ -305,6 +305,13 @@ class DelayMismatch(Effect):
         it only if it leaves at most ``ESCAPE_GAIN`` of what it leaves."""
         from ._where import dip_comparable, dip_window
 
+        pinned = getattr(problem, "pinned", {}).get(self.name)
+        if pinned is not None:
+            # a half of a cross-validation: within SEARCH_HALF_WIDTH of the whole record's
+            # delay (skdelay.gap._diagnose.pin_choices), no window of its own
+            half = self.SEARCH_HALF_WIDTH * problem.sample_dt
+            return self._grid(problem, {"tau": pinned}, objective,
+                              max(pinned - half, problem.sample_dt), pinned + half)
         lo, hi = self.search_bounds(guess, problem)["tau"]
         best = self._grid(problem, guess, objective, lo, hi)
         # only where the dip narrowed the search and is not the record's only evidence
