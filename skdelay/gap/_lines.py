@@ -242,7 +242,11 @@ def line_scan(real, sims, sample_dt, *, max_lines=5):
     coef = eigencoefficients(z)
     real_raw = log_power(coef)
     real_log = narrow_excess(real_raw)
-    raws = np.array([log_power(eigencoefficients(r)) for r in runs])
+    # each run's tapered DFTs once: its power and its F-test serve both families' calibration
+    run_coefs = [eigencoefficients(r) for r in runs]
+    raws = np.array([log_power(c) for c in run_coefs])
+    run_pf = np.array([harmonic_f(c, n)[1] for c in run_coefs])
+    del run_coefs
     logs = np.array([narrow_excess(raw) for raw in raws])
     f_stat, p_f, _ = harmonic_f(coef, n)
     lo = math.ceil(MIN_CYCLES * PAD)
@@ -254,7 +258,7 @@ def line_scan(real, sims, sample_dt, *, max_lines=5):
     for j in range(len(runs)):
         others = np.delete(logs, j, axis=0)
         zj = _zmap(logs[j], others)[scan]
-        _, pj, _ = harmonic_f(eigencoefficients(runs[j]), n)
+        pj = run_pf[j]
         hit = pj[scan] < F_ALPHA
         if np.any(hit):
             null = max(null, float(np.max(zj[hit])))
@@ -268,7 +272,7 @@ def line_scan(real, sims, sample_dt, *, max_lines=5):
     both = (z_real[scan] > threshold) & (p_f[scan] < F_ALPHA)
     combined = ((z_real[scan] > Z_GATE) & (p_f[scan] < F_GATE)
                 & (joint < min(family, null_joint)))
-    low, z_low = _low_band(scan, real_raw, raws, runs, p_f, n)
+    low, z_low = _low_band(scan, real_raw, raws, run_pf, p_f)
     flagged = both | combined | low
     # a line found by the low band's test reports its power's excess (what found it)
     z_real = z_real.copy()
@@ -326,7 +330,7 @@ def line_scan(real, sims, sample_dt, *, max_lines=5):
 #: the power there too but is not coherent: the F gate keeps it out.
 
 
-def _low_band(scan, real_raw, raws, runs, p_f, n):
+def _low_band(scan, real_raw, raws, run_pf, p_f):
     """``(flags, z)`` over ``scan``: the bins the low-band test flags (see the notes above)
     and the z of their power against the runs' (NaN outside the low band)."""
     far = int(CONTINUUM * NW * PAD)
@@ -339,10 +343,9 @@ def _low_band(scan, real_raw, raws, runs, p_f, n):
     z_low = _zmap(real_raw, raws)[bins]
     # calibration as in the main test: how far one run's power sticks out of the others'
     null, null_joint = 0.0, np.inf
-    for j in range(len(runs)):
+    for j in range(raws.shape[0]):
         zj = _zmap(raws[j], np.delete(raws, j, axis=0))[bins]
-        _, pj, _ = harmonic_f(eigencoefficients(runs[j]), n)
-        pj = pj[bins]
+        pj = run_pf[j][bins]
         if np.any(pj < F_ALPHA):
             null = max(null, float(np.max(zj[pj < F_ALPHA])))
         gate = (zj > Z_GATE) & (pj < F_GATE)
