@@ -12,7 +12,7 @@ import pytest
 
 from skdelay.gap import diagnose_gap
 from skdelay.gap._diagnose import significance
-from skdelay.gap._problem import GapProblem
+from skdelay.gap._problem import GapProblem, dip_difference_se
 from skdelay.systems import Ikeda
 
 IKEDA = Ikeda()  # tau = 5 time units, 10 samples at sample_dt 0.5
@@ -53,6 +53,26 @@ def test_delay_mismatch_is_named_and_fitted(shifted):
     tau = rep.effects.set_index("effect").loc["delay_mismatch", "params"]["tau"]
     assert abs(tau - TRUE_TAU) <= DT  # within one sample
     assert "forecast-error dip lies outside the runs' scatter" in rep.summary()
+
+
+def test_two_runs_with_jumpy_bootstraps_do_not_hide_a_shift():
+    # Ikeda, delay 8.49 against 10 samples (benchmark seed 17.7e6): four runs at 10.00 whose
+    # bootstrap errors are 1.60, 0.99, 0.18 and 0.03, the record at 8.44 +- 0.15
+    se = dip_difference_se(0.153, [1.595, 0.992, 0.178, 0.029], [10.0] * 4)
+    assert se == pytest.approx(0.178 * np.sqrt(1.25), rel=0.01)
+    assert (10.0 - 8.44) / se > 3.0  # DIP_Z
+    # the old sum of the record's error, the runs' median and their scatter hid it
+    assert (10.0 - 8.44) / np.hypot(0.153, np.median([1.595, 0.992, 0.178, 0.029])) < 3.0
+
+
+def test_a_poorly_placed_record_dip_keeps_its_own_error():
+    # the record's bootstrap error (a dip that jumps between minima) stands for the record
+    se = dip_difference_se(2.3, [0.27, 0.29, 0.33, 0.29], [16.6, 16.3, 16.5, 16.4])
+    assert se >= 2.3
+    # the runs' scatter counts where it exceeds the bootstrap errors
+    runs = [16.0, 16.8, 16.2, 17.0]
+    se = dip_difference_se(0.05, [0.05] * 4, runs)
+    assert se == pytest.approx(np.std(runs, ddof=1) * np.sqrt(1.25))
 
 
 def _context(spread, comparable=True, delay_samples=40.0, dip_only=False):
