@@ -205,8 +205,9 @@ class GapProblem:
     #: inflated when a few draws jump to a distant minimum of the whole curve (Ikeda, step
     #: 0.5, delay 10 samples, benchmark seed 15.3e6: 1.6 samples for a run whose dip sat
     #: at 10.0 like the other's, 0.07), and the mean of the two errors hid a dip shift of
-    #: 1.6 samples (real 8.38, delay 4.29 against 5).  Four runs give the median of their
-    #: errors and a scatter of their centres (about 1-2 s more per 6000-sample diagnosis).
+    #: 1.6 samples (real 8.38, delay 4.29 against 5).  Four runs give a scatter of their
+    #: centres and, with the record, a median of five errors (:func:`dip_difference_se`;
+    #: about 1-2 s more per 6000-sample diagnosis).
     DIP_RUNS = 4
     #: set by the diagnosis when the dip is the record's only significant discrepancy
     #: (a delay fit then stays within the dip's standard error)
