@@ -394,7 +394,7 @@ class ParameterDrift(Effect):
     #: coarse scan's largest change and at one of its extensions.  A drift may go either
     #: way, and a laser's indicators respond to its parameters far from linearly: CO2 laser
     #: (6000 samples, held-out-style benchmark seeds 18.4e6 and 18.5e6), r 195 -> 126 and
-    #: beta 0.27 -> 0.43 ranked 5th and 5th of 12 by one +10 % run (only three are
+    #: beta 0.27 -> 0.43 ranked 5th and 7th or lower of 12 by one +10 % run (three are
     #: scanned), and the records were read as a delay and as dynamical noise; r aligns with
     #: the record's deviation at -20 % (cosine 0.44, two seeds) but not at -10 or -12 %,
     #: beta at +12 % (0.26, 0.44) but hardly at +10 % (0.12)
