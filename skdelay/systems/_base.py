@@ -40,8 +40,9 @@ class DelaySystem:
 
     Subclasses set ``name``, ``dim``, ``feedback_index``, ``max_dt`` (largest
     default integration step, in time units), ``time_unit``, ``noise_scale``
-    (per-component scale of the dynamical noise), ``transient_time`` and the
-    numba functions ``_rhs`` and ``_jac``; their ``__init__`` passes its
+    (per-component scale of the dynamical noise), ``transient_time`` and
+    ``transient_delays`` (the default transient is the longer of the two, the second
+    in delays) and the numba functions ``_rhs`` and ``_jac``; their ``__init__`` passes its
     arguments (including ``tau``) to ``DelaySystem.__init__``.
 
     Integration is RK4 with a fixed step ``dt`` (see :mod:`._integrate`); by
@@ -55,6 +56,7 @@ class DelaySystem:
     max_dt = 0.05
     time_unit = "time unit"
     transient_time = 500.0
+    transient_delays = 10.0
     qr_interval = 1.0
     spectrum_duration = 20_000.0
     noise_scale = (1.0,)
@@ -243,7 +245,7 @@ class DelaySystem:
 
     def _transient(self, transient, tau):
         if transient is None:
-            return max(self.transient_time, 10.0 * tau)
+            return max(self.transient_time, self.transient_delays * tau)
         transient = float(transient)
         if not (math.isfinite(transient) and transient >= 0):
             raise ValueError(f"transient must be a non-negative time, got {transient}.")
@@ -267,7 +269,8 @@ class DelaySystem:
             ``D * noise_scale * sqrt(dt) * N(0, 1)`` to every component
             (Euler-Maruyama).
         transient : float or None
-            Time discarded before recording; default ``max(transient_time, 10 tau)``.
+            Time discarded before recording; default
+            ``max(transient_time, transient_delays * tau)``.
         dt : float or None
             Integration step; must divide ``sample_dt``.  Default: the largest
             ``sample_dt / k`` not above ``max_dt``.
