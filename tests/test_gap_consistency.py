@@ -137,3 +137,23 @@ def test_a_second_dip_must_lie_below_the_runs_by_its_standard_errors():
     assert len(other_dips(taus, curve, main, reference=ref, se=tight, min_z=DIP_Z)) == 1
     loose = np.full(taus.size, 0.08)  # 0.15 below = 1.9 standard errors
     assert other_dips(taus, curve, main, reference=ref, se=loose, min_z=DIP_Z) == []
+
+
+def test_the_highest_peak_is_read_with_its_rivals_within_the_sampling_error():
+    """Two spectral peaks of equal height: which is "the highest" is chance, so a timebase
+    check reads both; a peak ten times lower (one decade, beyond the Welch error of 0.16
+    decades at 6000 samples) is not a rival."""
+    from skdelay.gap._diagnose import _top_peaks
+
+    rng = np.random.default_rng(3)
+    t = np.arange(6000)
+
+    def record(a2):
+        return (np.sin(2 * np.pi * 0.037 * t) + a2 * np.sin(2 * np.pi * 0.043 * t + 1.0)
+                + rng.standard_normal(t.size))
+
+    twin, _ = _top_peaks(record(1.0), 1.0)
+    assert any(abs(f - 0.037) < 1e-3 for f in twin) and any(abs(f - 0.043) < 1e-3 for f in twin)
+    alone, _ = _top_peaks(record(np.sqrt(0.1)), 1.0)
+    assert any(abs(f - 0.037) < 1e-3 for f in alone)
+    assert not any(abs(f - 0.043) < 1e-3 for f in alone), alone
