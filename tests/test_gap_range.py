@@ -169,3 +169,43 @@ def test_a_hard_edge_a_hair_beyond_the_runs_edges_is_not_an_excursion():
     spiked = get_effect("outliers").apply(_floored(70), {"rate": 0.003, "size": 4.0},
                                           random_state=5)
     assert range_test(spiked, runs)["off"]
+
+
+def test_a_fit_whose_runs_make_the_excursions_explains_a_record_with_no_other_evidence():
+    """Where excursions beyond the runs' range are a record's only evidence, the share of a
+    gap within the no-gap level ranks nothing: the candidate whose own runs the record no
+    longer leaves beyond chance goes first (and none does when no run makes them)."""
+    import pandas as pd
+
+    from skdelay.gap._diagnose import _spike_evidence_first
+
+    ik = Ikeda()
+    clean = [ik.simulate(6000, sample_dt=0.5, random_state=s) for s in range(931, 937)]
+    out = get_effect("outliers")
+    real = out.apply(ik.simulate(6000, sample_dt=0.5, random_state=941),
+                     {"rate": 0.003, "size": 3.5}, sample_dt=0.5, random_state=942)
+    spiky = [out.apply(x, {"rate": 0.003, "size": 3.5}, sample_dt=0.5, random_state=950 + j)
+             for j, x in enumerate(clean)]
+
+    class Problem:  # the record and, per candidate, the runs a fit of it makes
+        def __init__(self):
+            self.real = real
+
+        def ensemble(self, chain, tier="full"):
+            return spiky if chain[0][0].name == "outliers" else clean
+
+    table = pd.DataFrame({"effect": ["lowpass", "outliers"], "status": ["ok", "ok"],
+                          "gap_after": [1.0, 2.0], "shrink": [0.2, 0.1],
+                          "params": [{"cutoff": 0.4}, {"rate": 0.003, "size": 3.5}]})
+    by_name = {name: get_effect(name) for name in table["effect"]}
+    sig = {"spikes_only": True, "threshold": 5.0}
+    new, evals, led = _spike_evidence_first(Problem(), sig, table, ["a", "b"], by_name)
+    assert led and list(new["effect"]) == ["outliers", "lowpass"] and evals == ["b", "a"]
+    # a fit that leaves the gap above the threshold does not explain it
+    high = table.assign(gap_after=[1.0, 9.0])
+    _, _, led = _spike_evidence_first(Problem(), sig, high, ["a", "b"], by_name)
+    assert not led
+    # nor is anything promoted when the excursions are not the only evidence
+    new, _, led = _spike_evidence_first(Problem(), {**sig, "spikes_only": False}, table,
+                                        ["a", "b"], by_name)
+    assert not led and list(new["effect"]) == ["lowpass", "outliers"]

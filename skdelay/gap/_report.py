@@ -35,7 +35,10 @@ class GapReport:
         forecast-error dip is the only significant discrepancy
         (``significance["dip_only"]``), only a fit that moves the model's dip
         onto the record's explains it, whatever share of the (no-gap level)
-        gap it removes; ``info["dip_led"]`` is then True.
+        gap it removes; ``info["dip_led"]`` is then True.  Likewise where the
+        record's excursions beyond the runs' range are (``significance["spikes_only"]``):
+        only a fit whose runs the record no longer leaves explains them
+        (``info["spike_led"]``).
     effects : pandas.DataFrame
         One row per candidate, best first: ``effect``, ``params`` (fitted
         values), ``gap_before``, ``gap_after``, ``shrink``
@@ -119,7 +122,8 @@ class GapReport:
     def from_problem(cls, problem, *, table, where, significance, best_effect, combined, after,
                      lacking=(),
                      explained="no gap", reasons=(), checks=(), cv_shrink=None,
-                     cross_validated=False, tie=None, small_rest=False, dip_led=False):
+                     cross_validated=False, tie=None, small_rest=False, dip_led=False,
+                     spike_led=False):
         """Assemble the report from a solved :class:`GapProblem`."""
         from ._where import localise
 
@@ -151,7 +155,8 @@ class GapReport:
                 "lines": [(ln.frequency, ln.amplitude, ln.z) for ln in problem.lines],
                 "sim_dip_centres": [d.centre for d in problem.sim_dips],
                 "second_dips": [d.centre for d in problem.second_dips],
-                "small_rest": bool(small_rest), "dip_led": bool(dip_led), **info_cv}
+                "small_rest": bool(small_rest), "dip_led": bool(dip_led),
+                "spike_led": bool(spike_led), **info_cv}
         return cls(best_effect=best_effect, effects=table, where=where, gap_before=gap_before,
                    gap_after=gap_after, shrink=1.0 - max(gap_after, 0.0) / gap_before
                    if gap_before > 0 else 0.0, significance=significance, combined=combined,
@@ -229,11 +234,11 @@ class GapReport:
             what = "the forecast-error dip lies outside the runs' scatter"
         elif s.get("beyond_range_p", 1.0) < RANGE_ALPHA:
             what = (f"the record leaves the simulator runs' range {s['beyond_range']} times "
-                    f"(isolated spikes; chance {s['beyond_range_p']:.1g} at the runs' own rate)")
+                    f"(chance {s['beyond_range_p']:.1g} at the runs' own rate)")
         elif s.get("jumps_p", 1.0) < RANGE_ALPHA:
             what = (f"{s['jumps']} times a sample jumps off both neighbours farther than the simulator "
-                    f"runs ever do (isolated spikes; chance {s['jumps_p']:.1g} at the runs' own "
-                    "rate)")
+                    f"runs ever do (spikes, or turns sharper than theirs; chance "
+                    f"{s['jumps_p']:.1g} at the runs' own rate)")
         else:
             return ""
         return (f", significant although the gap {self.gap_before:.3g} is within the no-gap "
@@ -391,10 +396,11 @@ class GapReport:
                      f"({100 * self.shrink:.0f} %); the rest lies outside the effect library.")
         if self.tie and not self.tie["decided"]:
             which = f"{which} {self._tie_words()}"
-        if self.info.get("dip_led"):
+        if self.info.get("dip_led") or self.info.get("spike_led"):
             if self.explained != "fully":
                 n = len(self.reasons)
-                which = (f"{label} ({row['description']}) accounts for the dip, but {n} "
+                what = "the dip" if self.info.get("dip_led") else "the excursions"
+                which = (f"{label} ({row['description']}) accounts for {what}, but {n} "
                          f"check{'s' if n > 1 else ''} still fail{'' if n > 1 else 's'} "
                          "(details below).")
             return f"{where} {which} {self._dip_led_words(thr)}"
@@ -411,12 +417,17 @@ class GapReport:
                 f"{tu}) onto the record's (at {fmt_value(self.info['dip_real'] * dt)} {tu})")
 
     def _dip_led_words(self, thr):
-        """How a fit that moves the dip explains a record whose only evidence is the dip."""
+        """How a fit explains a record whose only evidence is the dip (a fit that moves it)
+        or its excursions beyond the runs' range (a fit whose runs make them)."""
         state = "stays within" if self.gap_after <= thr else "rises above"
-        return (f"Its fit moves {self._dip_words()}; the gap, {self.gap_before:.3g} before and "
-                f"{self.gap_after:.3g} after, {state} the no-gap threshold {thr:.3g}, so the "
-                f"dip, not the share of the gap removed ({100 * self.shrink:.0f} %), is the "
-                "evidence.")
+        if self.info.get("spike_led"):
+            how, what, verb = ("Against its runs the record's excursions are within chance "
+                               "(values and jumps off their neighbours)"), "excursions", "are"
+        else:
+            how, what, verb = f"Its fit moves {self._dip_words()}", "dip", "is"
+        return (f"{how}; the gap, {self.gap_before:.3g} before and {self.gap_after:.3g} "
+                f"after, {state} the no-gap threshold {thr:.3g}, so the {what}, not the share "
+                f"of the gap removed ({100 * self.shrink:.0f} %), {verb} the evidence.")
 
     def _small_rest(self):
         """Is what the effects leave too small to be called a gap, with only broadband
@@ -470,7 +481,7 @@ class GapReport:
         row = self.effects.iloc[0]
         desc = EFFECTS[row["effect"]].description if row["effect"] in EFFECTS else row["effect"]
         names = [row["effect"]] + ([self.combined["effects"][1]] if self.combined else [])
-        if self.info.get("dip_led"):
+        if self.info.get("dip_led") or self.info.get("spike_led"):
             text.append(f"{'Best explanation' if self.explained == 'fully' else 'Partly explained by'}"
                         f": {row['effect']} ({desc}): {row['description']}. "
                         + self._dip_led_words(s["threshold"]))
