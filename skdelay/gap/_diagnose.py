@@ -415,6 +415,14 @@ def _with_consistency(problem, table, by_name, min_shrink):
     return table.assign(consistent=flags)
 
 
+def _row_first(table, evaluations, i):
+    """``(table, evaluations)`` with row ``i`` moved to the top (the rest in order)."""
+    if i == 0:
+        return table, evaluations
+    order = [i] + [j for j in range(len(table)) if j != i]
+    return table.iloc[order].reset_index(drop=True), [evaluations[j] for j in order]
+
+
 def _consistent_first(problem, table, evaluations, by_name):
     """Put the best candidate whose parameters agree with the data first (see
     :data:`CONSISTENT_SLACK`); adds the ``consistent`` column (None: no independent check).
@@ -428,8 +436,7 @@ def _consistent_first(problem, table, evaluations, by_name):
         if row["status"] != "ok" or not row["shrink"] >= max(MIN_SHRINK, top - CONSISTENT_SLACK):
             continue
         if not _contradicted(row):
-            order = [i] + [j for j in range(len(table)) if j != i]
-            return (table.iloc[order].reset_index(drop=True), [evaluations[j] for j in order])
+            return _row_first(table, evaluations, i)
     return table, evaluations
 
 
@@ -466,12 +473,7 @@ def _dip_evidence_first(problem, sig, table, evaluations, by_name):
             continue
         flags = list(table["consistent"]) if "consistent" in table else [None] * len(table)
         flags[i] = True
-        table = table.assign(consistent=flags)
-        if i == 0:
-            return table, evaluations, True
-        order = [i] + [j for j in range(len(table)) if j != i]
-        return (table.iloc[order].reset_index(drop=True), [evaluations[j] for j in order],
-                True)
+        return (*_row_first(table.assign(consistent=flags), evaluations, i), True)
     return table, evaluations, False
 
 
@@ -517,11 +519,7 @@ def _spike_evidence_first(problem, sig, table, evaluations, by_name):
             continue
         if _excursions_off(problem.real, runs):
             continue
-        if i == 0:
-            return table, evaluations, True
-        order = [i] + [j for j in range(len(table)) if j != i]
-        return (table.iloc[order].reset_index(drop=True), [evaluations[j] for j in order],
-                True)
+        return (*_row_first(table, evaluations, i), True)
     return table, evaluations, False
 
 
@@ -1639,9 +1637,7 @@ def _run(real, simulator, sample_dt, candidates, random_state, n_jobs, n_sims, c
                 # round 1's alternative + the second effect is clearly better
                 swap = int(np.flatnonzero(table["effect"].to_numpy() == tie["effects"][0])[0])
         if swap is not None:  # round 1's runner-up pairs better with the second effect
-            order = [swap] + [i for i in range(len(table)) if i != swap]
-            table = table.iloc[order].reset_index(drop=True)
-            evaluations = [evaluations[i] for i in order]
+            table, evaluations = _row_first(table, evaluations, swap)
             top = table.iloc[0]
             best = top["effect"]
             chain = [(by_name[best], dict(top["params"]))]
