@@ -141,7 +141,7 @@ def test_a_second_dip_must_lie_below_the_runs_by_its_standard_errors():
 
 def test_the_highest_peak_is_read_with_its_rivals_within_the_sampling_error():
     """Two spectral peaks of equal height: which is "the highest" is chance, so a timebase
-    check reads both; a peak ten times lower (one decade, beyond the Welch error of 0.16
+    check reads both; a peak ten times lower (one decade, beyond the Welch error of 0.17
     decades at 6000 samples) is not a rival."""
     from skdelay.gap._diagnose import _top_peaks
 

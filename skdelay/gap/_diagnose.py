@@ -280,7 +280,7 @@ def _top_peaks(x, sample_dt, nperseg=4096):
     """``(frequencies, bin width)``: the peaks of ``x``'s spectrum that the highest one
     does not clear by more than its sampling error.
 
-    Welch's log power scatters by ``log10(e) sqrt(psi'(dof / 2))`` per bin (0.16 decades
+    Welch's log power scatters by ``log10(e) sqrt(psi'(dof / 2))`` per bin (0.17 decades
     at 6000 samples), so two peaks closer than TB_SCATTER_Z spreads of their difference
     could be either way round: which is "the highest" is chance, and each is read.  CO2
     laser, 6000 samples, benchmark seed 18.5e6: a record sampled 2.2 % slow had its two
