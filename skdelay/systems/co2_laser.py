@@ -146,6 +146,12 @@ class CO2LaserFeedback(DelaySystem):
         positive exponents, largest ~7-9 per ms; ``tau = 150``: about 10-15,
         largest ~2-3 per ms; ``tau = 400``: more than 16.
 
+    From its quiet initial history the laser needs tens of delays to build up
+    its spiking (up to 3000, 5000 and 11 500 us at ``tau`` = 50, 150 and 400,
+    ``benchmarks/laser_transient.py``), so ``simulate`` discards
+    ``max(5000, 50 tau)`` by default; a shorter ``transient`` records the
+    build-up.
+
     Examples
     --------
     >>> from skdelay.systems import CO2LaserFeedback
