@@ -4,6 +4,7 @@ from typing import ClassVar
 
 import numpy as np
 import pytest
+from scipy import signal
 
 from skdelay.gap import (
     EFFECTS,
@@ -186,6 +187,32 @@ def test_timebase_resampling_and_centroid_guess():
     assert np.allclose(y[:100], np.interp(t[:100], np.arange(len(ref)), ref), atol=1e-3)
     g = tb.guess(y[:20000], np.array([smooth_signal(20000, s) for s in (3, 3)]), 1.0)
     assert g["factor"] == pytest.approx(1.15, abs=0.05)
+
+
+def test_timebase_resampling_keeps_the_power_near_nyquist():
+    # a rough signal (white noise) read 0.6 samples late by the end of the record: its
+    # power near Nyquist must stay (a cubic spline halved it half-way between samples)
+    x = np.random.default_rng(5).standard_normal(6000)
+    y = get_effect("timebase_mismatch").apply(x, {"factor": 1.0001})
+    f, p = signal.welch(y[3000:], nperseg=256)
+    _, p0 = signal.welch(x[3000:], nperseg=256)
+    top = f > 0.4
+    assert p[top].mean() / p0[top].mean() == pytest.approx(1.0, abs=0.1)
+
+
+def test_timebase_resampling_matches_a_record_sampled_at_the_slower_step():
+    # Mackey-Glass read at step 1.02 by resampling a run at step 1, against the same
+    # trajectory sampled at 1.02 (integrated at 0.01 and 0.0102): same values
+    from skdelay.systems import MackeyGlass
+
+    mg = MackeyGlass()
+    fine = mg.simulate(61200, sample_dt=0.1, dt=0.1, random_state=4)
+    x = fine[::10]                                     # step 1
+    y = get_effect("timebase_mismatch").apply(x, {"factor": 1.02})
+    t = np.arange(len(y)) * 10.2                       # in fine samples
+    ref = np.interp(t, np.arange(fine.size), fine)     # step 1.02 (fine grid, smooth)
+    inner = slice(20, len(y) - 20)
+    assert np.abs(y[inner] - ref[inner]).max() < 2e-3 * np.ptp(x)
 
 
 def test_white_floor_and_spike_guesses():
