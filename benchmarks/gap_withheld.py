@@ -91,8 +91,9 @@ LASER_DRIFT = {"b0": (0.06, 0.4), "r": (0.15, 0.6), "beta": (0.4, 0.9)}
 #: earlier amplitude range's "moderate" 1.4-5.4 % of the std gave SNR ~25-120.)
 HUM_SNR = (10.0, 640.0)
 
-#: Per-system "barely detectable" strengths (onsets) for the systems added after the ranges
-#: above were set (Ikeda at step 0.5, the electro-optic oscillator at step 0.25), at 6000
+#: "Barely detectable" strengths (onsets) per system and sampling step, for the systems
+#: added after the ranges above were set (Ikeda at steps 0.5 and 0.25, the electro-optic
+#: oscillator at 0.25 and 0.5; a step without its own row uses the nearest one's), at 6000
 #: and at 2e4 samples: the geometric mean of the largest strength of a x2 grid whose gap
 #: the sim-vs-sim significance test (no attribution) called significant on neither
 #: calibration record and the smallest one it called significant on both.  Measured with
