@@ -21,6 +21,8 @@ _CACHE = {}
 
 def make_real(effect, params, seed, n=N):
     eff = get_effect(effect)
+    if effect == "timebase_mismatch":  # a real clock: the record sampled at the true step
+        return MG.simulate(n, sample_dt=params["factor"], random_state=seed)
     if eff.target == "simulation":
         return MG.simulate(n, random_state=seed, **eff.overrides(params, MG))
     x = MG.simulate(int(n * params.get("factor", 1.0)) + 2, random_state=seed)

@@ -12,7 +12,9 @@ parameter).  Each effect knows
   of distinct values the ADC step, ...);
 * how it is applied: ``apply(x, params, ...)`` to a simulated observation
   (``target = "observation"``) or ``overrides(params, simulator)`` passed to
-  ``simulator.simulate(..., **overrides)`` (``target = "simulation"``).
+  ``simulator.simulate(..., **overrides)`` (``target = "simulation"``); the
+  override :data:`SAMPLING_FACTOR` reaches no simulator: it multiplies the
+  sampling step of the runs (a timebase mismatch).
 
 :func:`diagnose_gap` fits every registered effect (or the ones it is given);
 :func:`register_effect` adds user-defined ones.
@@ -27,6 +29,16 @@ from typing import ClassVar
 import numpy as np
 
 from ._search import generic_search
+
+#: Override key of a simulation effect that changes the runs' sampling step instead of a
+#: parameter: ``simulate(n, sample_dt=sample_dt * factor, ...)`` without the key.  A clock
+#: mismatch is re-simulated rather than read off the nominal runs by interpolation: every
+#: interpolation leaves its own traces, and which one resembles a real recorder depends on
+#: the signal (a cubic spline smooths a signal with power near Nyquist -- Ikeda at step
+#: 0.25 was told from the simulator at a factor of 1.0001 by that alone --, a Fourier series
+#: rings around the laser's spikes: at the true factor of a laser record sampled 1.6 % fast
+#: it left a gap of 6.5 against 0.2 for the spline; benchmarks/gap_timebase.py).
+SAMPLING_FACTOR = "_sampling_factor"
 
 #: name -> effect class; filled by the effect modules and :func:`register_effect`.
 EFFECTS = {}

@@ -13,7 +13,7 @@ from typing import ClassVar
 import numpy as np
 from scipy import signal
 
-from ._effects import Effect, NotApplicable, fmt_value, register_effect
+from ._effects import SAMPLING_FACTOR, Effect, NotApplicable, fmt_value, register_effect
 from ._signature import (
     centroid,
     pile_ups,
@@ -531,7 +531,9 @@ class TimebaseMismatch(Effect):
     ``apply`` needs ``len(x) >= factor * n`` for ``n`` output samples; it
     returns ``floor((len(x) - 1) / factor) + 1`` samples, resampled band-limited
     (:func:`rescale_time`: no smoothing, a ringing of a few 1e-3 of the
-    amplitude at the ends of a smooth signal).
+    amplitude at the ends of a smooth signal).  The diagnosis does not resample:
+    it re-simulates its runs at the step ``factor * sample_dt``
+    (:data:`~skdelay.gap._effects.SAMPLING_FACTOR`), as a real clock records.
 
     Examples
     --------
@@ -544,6 +546,8 @@ class TimebaseMismatch(Effect):
     """
 
     name = "timebase_mismatch"
+    # the runs are simulated at the stretched step (SAMPLING_FACTOR), not resampled
+    target = "simulation"
     stage = 0
     bounds: ClassVar[dict] = {"factor": (0.7, 1.4)}
     units: ClassVar[dict] = {"factor": "x nominal sampling step"}
@@ -591,7 +595,12 @@ class TimebaseMismatch(Effect):
         lo, hi = self.bounds["factor"]
         return {"factor": (max(g - half, lo), min(g + half, hi))}
 
+    def overrides(self, params, simulator):
+        return {SAMPLING_FACTOR: float(params["factor"])}
+
     def apply(self, x, params, *, sample_dt=1.0, random_state=None):
+        """``x`` (sampled at the nominal step) read at the stretched times (band-limited,
+        :func:`rescale_time`); the diagnosis itself re-simulates (:meth:`overrides`)."""
         x = np.asarray(x, dtype=float)
         factor = float(params["factor"])
         n_out = int(np.floor((x.size - 1) / factor)) + 1

@@ -15,7 +15,13 @@ import numpy as np
 from joblib import Parallel, delayed
 
 from .._checks import check_random_state
-from ._effects import CandidateFailed, EffectFailed, SimulationFailed, call_hook
+from ._effects import (
+    SAMPLING_FACTOR,
+    CandidateFailed,
+    EffectFailed,
+    SimulationFailed,
+    call_hook,
+)
 from ._indicators import ensemble_stats, indicator_gap, make_indicators, profiles, zscores
 from ._lines import line_scan, spectrum_view
 from ._signature import zscore
@@ -25,10 +31,16 @@ __all__ = ["Evaluation", "GapProblem", "SimulationFailed", "run_simulator"]
 
 
 def run_simulator(simulator, n, sample_dt, seed, overrides):
-    """``simulator.simulate`` with every failure turned into :class:`SimulationFailed`."""
-    what = f"simulate({_kw(overrides)})"
+    """``simulator.simulate`` with every failure turned into :class:`SimulationFailed`;
+    the override :data:`~skdelay.gap._effects.SAMPLING_FACTOR` scales ``sample_dt``."""
+    overrides = dict(overrides)
+    factor = float(overrides.pop(SAMPLING_FACTOR, 1.0))
+    what = (f"simulate({_kw(overrides)})" if factor == 1.0 else
+            f"simulate(sample_dt={sample_dt * factor!r}{', ' if overrides else ''}"
+            f"{_kw(overrides)})")
     try:
-        x = simulator.simulate(n, sample_dt=sample_dt, random_state=int(seed), **overrides)
+        x = simulator.simulate(n, sample_dt=sample_dt * factor, random_state=int(seed),
+                               **overrides)
         # converting the output is still user territory (a list of strings, a ragged list)
         x = np.asarray(x, dtype=float)
     except Exception as exc:  # boundary of user code: fails this candidate only
