@@ -307,6 +307,15 @@ def test_outliers_are_measured_not_fitted_to_the_realised_draws(seed):
     assert p["size"] == pytest.approx(np.median(np.abs(real - x)[hit]) / x.std(), rel=0.1)
 
 
+@pytest.mark.parametrize("factor", [0.0, -1.0, float("nan"), float("inf")])
+def test_the_timebase_refuses_a_factor_that_is_no_step_ratio(factor):
+    eff = get_effect("timebase_mismatch")
+    with pytest.raises(ValueError, match="positive finite"):
+        eff.apply(np.ones(100), {"factor": factor})
+    with pytest.raises(ValueError, match="positive finite"):
+        eff.overrides({"factor": factor}, None)
+
+
 def test_the_timebase_resimulates_at_the_stretched_step():
     from skdelay.gap._problem import GapProblem
     from skdelay.systems import MackeyGlass

@@ -595,14 +595,22 @@ class TimebaseMismatch(Effect):
         lo, hi = self.bounds["factor"]
         return {"factor": (max(g - half, lo), min(g + half, hi))}
 
+    @staticmethod
+    def _factor(params):
+        factor = float(params["factor"])
+        if not np.isfinite(factor) or factor <= 0:
+            raise ValueError(f"timebase factor must be a positive finite number (real sampling "
+                             f"step / nominal step, e.g. 1.02), got {params['factor']!r}.")
+        return factor
+
     def overrides(self, params, simulator):
-        return {SAMPLING_FACTOR: float(params["factor"])}
+        return {SAMPLING_FACTOR: self._factor(params)}
 
     def apply(self, x, params, *, sample_dt=1.0, random_state=None):
         """``x`` (sampled at the nominal step) read at the stretched times (band-limited,
         :func:`rescale_time`); the diagnosis itself re-simulates (:meth:`overrides`)."""
         x = np.asarray(x, dtype=float)
-        factor = float(params["factor"])
+        factor = self._factor(params)
         n_out = int(np.floor((x.size - 1) / factor)) + 1
         return rescale_time(x, factor)[:n_out]
 
