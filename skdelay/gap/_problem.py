@@ -16,6 +16,7 @@ from joblib import Parallel, delayed
 
 from .._checks import check_random_state
 from ._effects import (
+    HISTORY,
     SAMPLING_FACTOR,
     CandidateFailed,
     EffectFailed,
@@ -32,20 +33,24 @@ __all__ = ["Evaluation", "GapProblem", "SimulationFailed", "run_simulator"]
 
 def run_simulator(simulator, n, sample_dt, seed, overrides):
     """``simulator.simulate`` with every failure turned into :class:`SimulationFailed`;
-    the override :data:`~skdelay.gap._effects.SAMPLING_FACTOR` scales ``sample_dt``."""
+    the override :data:`~skdelay.gap._effects.SAMPLING_FACTOR` scales ``sample_dt`` and
+    :data:`~skdelay.gap._effects.HISTORY` prepends a history, cut off again."""
     overrides = dict(overrides)
     factor = float(overrides.pop(SAMPLING_FACTOR, 1.0))
+    history = float(overrides.pop(HISTORY, 0.0))
+    total = n + max(round(n * history), 0)
     what = (f"simulate({_kw(overrides)})" if factor == 1.0 else
             f"simulate(sample_dt={sample_dt * factor!r}{', ' if overrides else ''}"
             f"{_kw(overrides)})")
     try:
-        x = simulator.simulate(n, sample_dt=sample_dt * factor, random_state=int(seed),
+        x = simulator.simulate(total, sample_dt=sample_dt * factor, random_state=int(seed),
                                **overrides)
         # converting the output is still user territory (a list of strings, a ragged list)
         x = np.asarray(x, dtype=float)
     except Exception as exc:  # boundary of user code: fails this candidate only
         raise SimulationFailed(f"{what} failed: {type(exc).__name__}: {exc}") from exc
-    return check_run(x, n, what, SimulationFailed)
+    x = check_run(x, total, what, SimulationFailed)
+    return x[total - n: total] if total > n else x
 
 
 def check_run(x, n, what, error=SimulationFailed):

@@ -13,7 +13,14 @@ from typing import ClassVar
 
 import numpy as np
 
-from ._effects import Effect, NotApplicable, SimulationFailed, fmt_value, register_effect
+from ._effects import (
+    HISTORY,
+    Effect,
+    NotApplicable,
+    SimulationFailed,
+    fmt_value,
+    register_effect,
+)
 from ._search import GRID, generic_search
 from ._signature import ensemble_psd, welch_psd
 
@@ -403,6 +410,13 @@ class ParameterDrift(Effect):
     fits_anchored_parts = True
     #: relative end values tried for every parameter in the coarse scan
     scan = (-0.12, -0.05, -0.02, 0.02, 0.05, 0.12)
+    #: shortest history (fraction of the part) simulated before a ramp's part: below it the
+    #: ramp starts at the simulator's value up to rounding
+    HISTORY_MIN = 1e-6
+    #: longest history, in lengths of the part: a cross-validation's second half needs one
+    #: (the first half); a user's ramp that barely moves far off ``v0`` would otherwise ask
+    #: for runs thousands of times longer than the record
+    HISTORY_MAX = 1.0
     #: further relative changes tried outward at both edges of the scan, the first always,
     #: the next ones while the gap keeps falling (parameters differ in sensitivity: a
     #: laser's pump may need a 40 % change)
@@ -595,9 +609,24 @@ class ParameterDrift(Effect):
         return dict(params, start=end, end=end + slope * n_score)
 
     def overrides(self, params, simulator):
+        """``{parameter: (start, end)}`` (a constant mismatch: the value).  A ramp that
+        starts off the simulator's value ``v0`` on the line through it -- a later part of the
+        record fitted on the ramp from the record's start -- is simulated from that start
+        (:data:`~skdelay.gap._effects.HISTORY`: ``(start - v0) / (end - start)`` of the
+        part's length before it), as the real system went through it."""
+        key = params["parameter"]
         start, end = float(params["start"]), float(params["end"])
-        value = start if start == end else (start, end)
-        return {params["parameter"]: value}
+        if start == end:
+            return {key: start}
+        v0 = getattr(simulator, "params", {}).get(key) if simulator is not None else None
+        history = ((start - float(v0)) / (end - start)
+                   if isinstance(v0, numbers.Real) and np.isfinite(v0) else 0.0)
+        if history > self.HISTORY_MAX * (1 + 1e-9):  # (rounding: a half has exactly one)
+            return {key: (start - (end - start) * self.HISTORY_MAX, end),
+                    HISTORY: self.HISTORY_MAX}
+        if history > self.HISTORY_MIN:
+            return {key: (float(v0), end), HISTORY: history}
+        return {key: (start, end)}
 
     def describe(self, params, *, scale=1.0, offset=0.0, sample_dt=1.0, time_unit=None):
         p, s, e = params["parameter"], params["start"], params["end"]
