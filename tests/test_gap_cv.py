@@ -372,6 +372,27 @@ def test_spikes_all_in_one_half_leave_the_outliers_untested_not_failed(seed, at,
     assert row["shrink"] == row["shrink_fit"] > 0.9
 
 
+def test_a_clipped_end_reached_in_one_half_only_leaves_the_clipping_untested():
+    """The electro-optic oscillator reaches its lowest values in the first half only
+    (record seed 26): clipped just above the second half's minimum, its 40 piled-up
+    samples all lie in the first half.  The second half cannot test a clipping (before, its
+    fit clipped the top instead and both folds scored nothing, so the in-sample shrink was
+    dropped); the clipping keeps its in-sample share and is named."""
+    from skdelay.systems import ElectroOpticOscillator
+
+    eo, dt = ElectroOpticOscillator(), 0.25
+    x = eo.simulate(6000, sample_dt=dt, random_state=26)
+    level = x[3000:].min()
+    real = np.maximum(x, level)
+    assert (real[:3000] == level).sum() >= 30 and (real[3000:] == level).sum() <= 1
+    rep = diagnose_gap(real, eo, sample_dt=dt, random_state=3, n_jobs=1,
+                       effects=["clipping", "measurement_noise", "lowpass"])
+    assert rep.best_effect == "clipping", rep.effects[["effect", "shrink", "status"]]
+    row = rep.effects.set_index("effect").loc["clipping"]
+    assert not row["cross_validated"] and row["shrink"] > 0.9
+    assert row["params"]["low"] == pytest.approx((level - x.mean()) / x.std(), abs=0.1)
+
+
 def test_an_untested_candidate_ranks_by_its_in_sample_share_against_tested_ones():
     """Untested outliers (0.79 in-sample) go after a drift that removes 0.98 in-sample though
     only 0.62 held out, and before noise that removes 0.67 in-sample; an untested candidate

@@ -349,6 +349,21 @@ class Clipping(Effect):
     description = "saturation (clipping)"
     signature: ClassVar[tuple] = ("histogram", "pile_ups")
 
+    def initial(self, problem):
+        """:meth:`guess`; on a half of a cross-validation whose whole record piles up at a
+        clipped end (:func:`skdelay.gap._diagnose.pin_choices`), NotApplicable when the
+        half holds no piled-up sample on that side: it cannot test the clipping (a few
+        excursions to the clipped level can all fall in the other half)."""
+        sides = getattr(problem, "pinned", {}).get(self.name)
+        if sides is not None:
+            lo, hi = pile_ups(problem.real)
+            if not ((sides["low"] and lo > 0) or (sides["high"] and hi > 0)):
+                raise NotApplicable(
+                    "this part of the record holds none of the samples piled up at the "
+                    "whole record's clipped end; it cannot test a clipping."
+                )
+        return super().initial(problem)
+
     def guess(self, real, sim, sample_dt):
         frac_lo, frac_hi = pile_ups(real)
         zs = np.concatenate([zscore(s[: len(real)]) for s in np.atleast_2d(sim)])
