@@ -625,7 +625,7 @@ class ParameterDrift(Effect):
         start, end = float(params["start"]), float(params["end"])
         if start == end:
             return {key: start}
-        v0 = getattr(simulator, "params", {}).get(key) if simulator is not None else None
+        v0 = (getattr(simulator, "params", None) or {}).get(key)
         history = ((start - float(v0)) / (end - start)
                    if isinstance(v0, numbers.Real) and np.isfinite(v0) else 0.0)
         if history > self.HISTORY_MAX * (1 + 1e-9):  # (rounding: a half has exactly one)
