@@ -78,7 +78,10 @@ class GapReport:
         the simulator runs among themselves), ``threshold``, ``significant``.
     combined : dict or None
         Second effect fitted on top of the best: ``effects``, ``params``,
-        ``gap_after``, ``shrink``, ``table``.
+        ``gap_after``, ``shrink``, ``table``, and ``joint`` (True when the
+        two were fitted in turn, each beneath / on top of the other: then the
+        best's own row is its value in the pair, and its share alone may be
+        negative).
     profiles : dict of DataFrame
         Per indicator: bin bounds, ``real``, ``sim_mean``, ``sim_std`` and
         ``fitted_mean`` (simulator + best effect) — what :meth:`plot` draws.
@@ -244,11 +247,18 @@ class GapReport:
         return (f", significant although the gap {self.gap_before:.3g} is within the no-gap "
                 f"threshold {s['threshold']:.3g}: {what}")
 
+    def _joint(self):
+        """Were the two effects fitted in turn, each beneath / on top of the other (so the
+        first one's share alone says nothing)?"""
+        return bool(self.combined and self.combined.get("joint"))
+
     def _why_second(self, best, nxt):
         """Why a runner-up that removes more of the gap than the best ranks second (a clause,
         empty when it removes less)."""
         if not nxt["shrink"] > best["shrink"]:
             return ""
+        if self._joint():
+            return ", more alone; the best is fitted together with its second effect"
         if self.tie and self.tie.get("decided") and nxt["effect"] in self.tie["effects"]:
             return ", more, but fresh noise realisations prefer the best (see below)"
 
@@ -485,6 +495,13 @@ class GapReport:
             text.append(f"{'Best explanation' if self.explained == 'fully' else 'Partly explained by'}"
                         f": {row['effect']} ({desc}): {row['description']}. "
                         + self._dip_led_words(s["threshold"]))
+        elif self.explained == "fully" and self._joint():
+            alone = (f"removes {100 * row['shrink']:.0f}% of the gap" if row["shrink"] >= 0
+                     else "widens the gap")
+            text.append(f"Best explanation: {row['effect']} ({desc}): {row['description']}; "
+                        f"fitted in turn with {names[1]}, it explains the gap together with "
+                        f"it (alone it {alone}: {row['gap_before']:.3g} -> "
+                        f"{row['gap_after']:.3g}).")
         elif self.explained == "fully":
             text.append(f"Best explanation: {row['effect']} ({desc}): {row['description']}. "
                         f"It removes {100 * row['shrink']:.0f}% of the gap "
