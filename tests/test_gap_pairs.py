@@ -334,4 +334,5 @@ def test_a_pair_fitted_in_turn_is_cross_validated_and_reported_as_a_pair():
     assert rep.shrink > 0.9  # held out: the halves fit the pair in turn too
     assert rep.combined["joint"] and rep.best_effect == "lowpass"
     assert rep.effects.iloc[0]["shrink"] < 0  # alone the low-pass at 0.065 widens the gap
-    assert "explains the gap together with measurement_noise" in rep.summary()
+    assert ("fitted in turn with measurement_noise, it explains the gap together with it"
+            in rep.summary())
