@@ -571,9 +571,12 @@ STRENGTHS = ("weak", "moderate", "strong")
 
 
 def build_cases(systems, n_cases, n_controls, n_combined, seed, n=15000, n_outside=1,
-                strength=None):
+                strength=None, pairs=None):
     """Cases per system: every library effect, no-effect and ADC-count controls, combined
     pairs (the first always measurement noise + hum) and causes outside the library.
+
+    ``pairs`` (a list of ``(effect, effect)``): the combined cases cycle through these
+    instead, each strength drawn at random within the moderate class.
 
     ``strength`` (None, "weak", "moderate" or "strong"): draw every single-effect case
     in that class; None stratifies case ``i`` of an effect into class ``i % 3`` (so a
@@ -609,12 +612,16 @@ def build_cases(systems, n_cases, n_controls, n_combined, seed, n=15000, n_outsi
                                                 "offset": float(rng.uniform(-1e4, 1e4))})],
                 "None", "adc")
         for j in range(n_combined):
-            if j == 0:
+            ua, ub = 0.55, 0.5
+            if pairs:
+                a, b = pairs[j % len(pairs)]
+                ua, ub = rng.uniform(1 / 3, 2 / 3, size=2)
+            elif j == 0:
                 a, b = "measurement_noise", "periodic_interference"
             else:
                 a, b = rng.choice(["periodic_interference", "measurement_noise", "lowpass",
                                    "clipping", "quantization"], size=2, replace=False)
-            chain = [(a, draw_params(system, a, 0.55, rng)), (b, draw_params(system, b, 0.5, rng))]
+            chain = [(a, draw_params(system, a, ua, rng)), (b, draw_params(system, b, ub, rng))]
             chain = _hum_in_context(system, chain)
             add(label, system, chain, f"{a}+{b}", "moderate")
         for _ in range(n_outside):
@@ -697,6 +704,10 @@ def main(argv=None):
                          "(e.g. measurement_noise,measurement_noise+periodic_interference); "
                          "the cases are drawn as without it, so seeds and strengths match "
                          "a full run with the same arguments")
+    ap.add_argument("--pairs", metavar="A+B[,C+D]",
+                    help="the combined cases cycle through these pairs of effects (e.g. "
+                         "lowpass+measurement_noise), each strength drawn within the "
+                         "moderate class, instead of measurement noise + hum and random pairs")
     ap.add_argument("--skip-runtime", action="store_true",
                     help="leave out the runtime of one diagnosis on --runtime-n points")
     args = ap.parse_args(argv)
@@ -749,8 +760,15 @@ def main(argv=None):
     if args.runtime_only:
         return
 
+    pairs = None
+    if args.pairs:
+        pairs = [tuple(p.strip().split("+")) for p in args.pairs.split(",") if p.strip()]
+        bad = [p for p in pairs if len(p) != 2 or not set(p) <= set(EFFECT_NAMES)]
+        if bad:
+            ap.error(f"--pairs {args.pairs}: each pair is two of {sorted(EFFECT_NAMES)} "
+                     "joined by '+'")
     cases = build_cases(chosen, args.cases, args.controls, args.combined, args.seed, args.n,
-                        args.outside, args.strength)
+                        args.outside, args.strength, pairs)
     if args.only:
         keep = {t.strip() for t in args.only.split(",") if t.strip()}
         cases = [c for c in cases if c["true"] in keep]
