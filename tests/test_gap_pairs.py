@@ -319,6 +319,30 @@ def test_a_lowpass_under_strong_noise_is_fitted_in_turn_with_it(seed, cutoff, no
     assert pair.gap_after < 0.1 * plain.gap_after, (alone.params, plain.gap_after)
 
 
+@pytest.mark.parametrize(("seed", "cutoff", "noise"), [(661, 0.09, 0.7), (662, 0.12, 0.65)])
+def test_a_lowpass_under_very_strong_noise_is_reached_from_spread_starts(seed, cutoff, noise):
+    """Under noise of about 0.7 std the low-pass alone reads "no filter" (0.9-2), the noise
+    on top of it finds little to add, and the turns from there stay put (the pair keeps
+    most of the gap).  From the best of the low-pass's spread starts (Lowpass.starts, noise
+    fitted on top of each) the turns reach the truth."""
+    from skdelay.gap._diagnose import _joint_pair
+    from skdelay.gap._fit import fit_effect
+    from skdelay.gap._problem import GapProblem
+
+    ik, real = _ikeda_lowpass_noise(seed, cutoff, noise)
+    problem = GapProblem(real, ik, sample_dt=0.5, random_state=1, n_jobs=1)
+    lowpass, measurement_noise = get_effect("lowpass"), get_effect("measurement_noise")
+    alone = fit_effect(lowpass, problem)
+    stuck, stuck_pair = _joint_pair(problem, lowpass, alone.params, measurement_noise,
+                                    spread=False)
+    params, pair = _joint_pair(problem, lowpass, alone.params, measurement_noise)
+    assert stuck["cutoff"] > 5 * cutoff  # the failure the starts are for
+    assert stuck_pair.gap_after > 0.5 * problem.before.gap
+    assert params["cutoff"] == pytest.approx(cutoff, rel=0.2)
+    assert pair.params["noise"] == pytest.approx(noise, rel=0.1)
+    assert pair.gap_after < 0.1 * stuck_pair.gap_after
+
+
 def test_a_pair_fitted_in_turn_is_cross_validated_and_reported_as_a_pair():
     """End to end, held out: the runner-up low-pass is refitted in turn with the noise on
     the whole record and on each half; the report names both and says the low-pass

@@ -122,7 +122,8 @@ class Effect:
     either :meth:`apply` (``target = "observation"``) or :meth:`overrides`
     (``target = "simulation"``).  The other hooks have default
     implementations that subclasses may override: :meth:`initial` (starting
-    parameters from the whole problem), :meth:`search` (the fit),
+    parameters from the whole problem), :meth:`starts` (more of them, for a pair
+    fitted in turn), :meth:`search` (the fit),
     :meth:`search_bounds`, :meth:`check`, :meth:`transfer` (parameters
     fitted on one half of the record for the other half) and
     :meth:`describe`.  Whatever a user-registered effect raises fails that
@@ -245,6 +246,16 @@ class Effect:
         :func:`skdelay.gap._search.generic_search` within :meth:`search_bounds`.
         """
         return generic_search(self, problem, guess, objective)
+
+    def starts(self, problem):
+        """Further starting parameters, spread over the values the record allows.
+
+        A pair of effects fitted in turn (:func:`skdelay.gap.diagnose_gap`: two
+        observation effects that mark the same indicators) starts from the best of
+        these as well as from the effect's own fit: that fit may sit in another
+        basin than the pair's.  Default: none.
+        """
+        return ()
 
     def transfer(self, params, n_fit, n_score, sample_dt=1.0, backward=False):
         """Parameters fitted on ``n_fit`` samples, for the next ``n_score`` samples.

@@ -112,12 +112,15 @@ class _Objective:
             return np.inf
 
 
-def fit_effect(effect, problem, base_chain=(), final=True):
+def fit_effect(effect, problem, base_chain=(), final=True, start=None):
     """Fit ``effect`` on top of ``base_chain``; return a :class:`FitResult`.
 
     ``final=False`` skips the evaluation of the fitted effect on every
     indicator (``gap_after`` NaN): cross-validation only needs the parameters
-    of the half it fits on, and scores them on the other half.
+    of the half it fits on, and scores them on the other half.  ``start``
+    (parameters, or None) competes with the effect's own start: the search
+    begins at whichever leaves the smaller gap (a pair refitted in turn goes on
+    from where it stands).
 
     A candidate that cannot act (:class:`NotApplicable`), whose simulator or
     user-defined effect fails (:class:`CandidateFailed`) comes back with
@@ -127,10 +130,10 @@ def fit_effect(effect, problem, base_chain=(), final=True):
     # joblib's workers inherit no thread limit here; BLAS threads spinning against each
     # other made a 4e4-sample diagnosis 3 times slower with n_jobs=2 than with 1
     with threadpool_limits(limits=1, user_api="blas"):
-        return _fit(effect, problem, base_chain, final)
+        return _fit(effect, problem, base_chain, final, start)
 
 
-def _fit(effect, problem, base_chain, final=True):
+def _fit(effect, problem, base_chain, final=True, start=None):
     t0 = time.perf_counter()
     objective = _Objective(effect, problem, base_chain)
     guess = None
@@ -138,6 +141,8 @@ def _fit(effect, problem, base_chain, final=True):
         guess = initial_params(effect, problem)
         call_hook(effect, "check", guess, problem.simulator)
         guess = _chain_start(effect, problem, base_chain, guess, objective)
+        if start is not None and {**guess, **start} != guess:
+            guess = min((guess, {**guess, **start}), key=objective)
         params = call_hook(effect, "search", problem, dict(guess), objective)
         if not isinstance(params, dict):
             raise CandidateFailed(f"effect {effect.name!r}: search() returned "
