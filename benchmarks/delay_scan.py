@@ -31,6 +31,7 @@ The machine may be shared: the header records the load average before each run.
 Run (2 cores)::
 
     nice -n 10 python benchmarks/delay_scan.py --part a --n-jobs 2
+    nice -n 10 python benchmarks/delay_scan.py --part a --n-jobs 2 --quick   # ratios only
     nice -n 10 python benchmarks/delay_scan.py --part b --n-jobs 2
     nice -n 10 python benchmarks/delay_scan.py --part c --n-jobs 1
 """
@@ -203,11 +204,12 @@ def part_a(args):
     common = {"m": ms, "n_neighbors": K, "ridge": RIDGE, "random_state": 0,
               "n_jobs": args.n_jobs}
     print(f"# (a) load average before: {load()}", flush=True)
-    default, t_def, mem_def, cpu_def = timed(forecast_error_curve, s, tau=taus,
-                                             n_queries=args.queries, **common)
-    w = int(default.attrs["theiler_window"])
-    print(f"project default: {t_def:.1f} s wall, {cpu_def:.1f} s CPU, "
-          f"{mem_def:.2f} GB peak; load average after {load()}", flush=True)
+    default = None
+    if not args.quick:
+        default, t_def, mem_def, cpu_def = timed(forecast_error_curve, s, tau=taus,
+                                                 n_queries=args.queries, **common)
+        print(f"project default: {t_def:.1f} s wall, {cpu_def:.1f} s CPU, "
+              f"{mem_def:.2f} GB peak; load average after {load()}", flush=True)
     if args.default_only:
         print(locate_dips(default)[["delay", "delay_error", "centre_se", "tau_best", "z",
                                     "significant"]].round(3).to_string())
@@ -215,18 +217,17 @@ def part_a(args):
               f"{ {k: round(v, 4) for k, v in default.attrs['exact_fraction'].items()} }; "
               f"refined cells: {int((~default.attrs['coarse']).sum().sum())}")
         return
-    full, t_full, _, cpu_full = timed(forecast_error_curve, s, tau=taus, refine=False,
+    full_taus = sub if args.quick else taus
+    full, t_full, _, cpu_full = timed(forecast_error_curve, s, tau=full_taus, refine=False,
                                       **common)
-    print(f"project full precision (all {taus.size} taus): {t_full:.1f} s wall", flush=True)
+    w = int(full.attrs["theiler_window"])
+    print(f"project full precision ({full_taus.size} taus): {t_full:.1f} s wall", flush=True)
     first = required_lags(5, 200) - 1  # the rows of the project's scan of this grid
     base, t_base, _, cpu_base = timed(baseline_scan, s, ms, sub, w, args.n_jobs, first)
     print(f"baseline ({sub.size} taus): {t_base:.1f} s wall", flush=True)
     base = np.asarray(base)
-    scale = taus.size / sub.size
+    scale, full_scale = taus.size / sub.size, taus.size / full_taus.size
     rel_full = np.abs(full.loc[sub].to_numpy() / base - 1)
-    rel_def = np.abs(default.loc[sub].to_numpy() / base - 1)
-    refined = ~default.attrs["coarse"].loc[sub].to_numpy()
-    dips = locate_dips(default)
     print()
     print(f"(a) N = {s.size}, m = 2..5, tau = 1..200 (800 cells), k = {K}, Theiler {w}, "
           f"n_jobs = {args.n_jobs}; Mackey-Glass delay 100, 0.5 % noise, 12 bits; "
@@ -238,28 +239,34 @@ def part_a(args):
     print(f"| baseline: cKDTree rebuild + numpy fit, every point a query | {sub.size * 4} | "
           f"{t_base:.1f} s | {cpu_base:.1f} s | {tb:.0f} s / {cb:.0f} s (extrapolated "
           f"x{scale:.1f}) | 1 |")
-    tf, cf = t_full, cpu_full
-    print(f"| project, full precision (every point a query) | 800 | {t_full:.1f} s | "
-          f"{cpu_full:.1f} s | {tf:.0f} s / {cf:.0f} s (measured) | "
+    tf, cf = t_full * full_scale, cpu_full * full_scale
+    how = "(measured)" if full_scale == 1 else f"(extrapolated x{full_scale:.1f})"
+    print(f"| project, full precision (every point a query) | {full_taus.size * 4} | "
+          f"{t_full:.1f} s | {cpu_full:.1f} s | {tf:.0f} s / {cf:.0f} s {how} | "
           f"{tb / tf:.1f}x / {cb / cf:.1f}x |")
-    print(f"| project, default ({args.queries} coarse queries, refined at the dip) | 800 | "
-          f"{t_def:.1f} s | {cpu_def:.1f} s | {t_def:.0f} s / {cpu_def:.0f} s (measured) | "
-          f"{tb / t_def:.1f}x / {cb / cpu_def:.1f}x |")
+    if default is not None:
+        print(f"| project, default ({args.queries} coarse queries, refined at the dip) | 800 | "
+              f"{t_def:.1f} s | {cpu_def:.1f} s | {t_def:.0f} s / {cpu_def:.0f} s (measured) | "
+              f"{tb / t_def:.1f}x / {cb / cpu_def:.1f}x |")
     print()
     print("accuracy against the baseline (the exact k-NN), |sigma / sigma_exact - 1| over the "
           "timed cells:")
     print(f"  full precision: median {np.median(rel_full):.4f}, max {rel_full.max():.4f}")
+    print(f"  provably exact neighbourhoods (full precision, per m): "
+          f"{ {k: round(v, 4) for k, v in full.attrs['exact_fraction'].items()} }")
+    if default is None:
+        return
+    rel_def = np.abs(default.loc[sub].to_numpy() / base - 1)
+    refined = ~default.attrs["coarse"].loc[sub].to_numpy()
     print(f"  default, refined cells ({refined.sum()}): "
           f"{_summary(rel_def[refined])}; coarse cells ({(~refined).sum()}): "
           f"{_summary(rel_def[~refined])} (includes the query subsampling; median "
           f"se/sigma of those cells "
           f"{np.median((default.attrs['se'] / default).loc[sub].to_numpy()[~refined]):.4f})")
-    print(f"  provably exact neighbourhoods (full precision, per m): "
-          f"{ {k: round(v, 4) for k, v in full.attrs['exact_fraction'].items()} }")
     print(f"  peak memory (PSS, main + workers) of the default scan: {mem_def:.2f} GB")
     print("dips of the default scan (true delay 100):")
-    print(dips[["delay", "delay_error", "centre_se", "tau_best", "z", "significant"]]
-          .round(3).to_string())
+    print(locate_dips(default)[["delay", "delay_error", "centre_se", "tau_best", "z",
+                                "significant"]].round(3).to_string())
 
 
 def part_c(args):
@@ -376,6 +383,9 @@ def main():
     parser.add_argument("--queries", type=int, default=10_000)
     parser.add_argument("--baseline-taus", type=int, default=6)
     parser.add_argument("--n-jobs", type=int, default=2)
+    parser.add_argument("--quick", action="store_true",
+                        help="(a) the full-precision scan on the baseline's taus only "
+                             "(extrapolated like the baseline), no default scan")
     parser.add_argument("--default-only", action="store_true",
                         help="(a) time only the default scan (no full-precision or baseline rows)")
     parser.add_argument("--check-m", dest="check_ms", type=int, nargs="*", default=[],

@@ -109,7 +109,11 @@ def build_tree(data, leaf_size=LEAF_SIZE):
 
 
 # inlined, and indexed by node rather than handed row views: it runs at every node a
-# query visits, where a call with two fresh views cost more than the few subtractions
+# query visits, where a call with two fresh views cost more than the few subtractions.
+# Branch-free (a max instead of an if per coordinate, the same values): which side of a box
+# a query lies on is a coin toss per coordinate, and the mispredicted branches cost more
+# than the arithmetic (the projected tree search of skdelay._scan on 10^5 noisy Mackey-Glass
+# points, k = 30, one thread: 3.9 / 4.4 us per query at m = 2 / 5 against 4.3 / 5.1).
 @njit(cache=True, inline="always")
 def box_dist2(q, box_lo, box_hi, node):
     """Squared distance of ``q`` to the bounding box of ``node`` (rows of ``box_lo`` and
@@ -117,12 +121,8 @@ def box_dist2(q, box_lo, box_hi, node):
     :mod:`skdelay._scan`."""
     s = 0.0
     for j in range(q.size):
-        if q[j] < box_lo[node, j]:
-            t = box_lo[node, j] - q[j]
-            s += t * t
-        elif q[j] > box_hi[node, j]:
-            t = q[j] - box_hi[node, j]
-            s += t * t
+        t = max(box_lo[node, j] - q[j], q[j] - box_hi[node, j], 0.0)
+        s += t * t
     return s
 
 
