@@ -360,6 +360,9 @@ def test_a_pair_fitted_in_turn_is_cross_validated_and_reported_as_a_pair():
     assert rep.effects.iloc[0]["shrink"] < 0  # alone the low-pass at 0.065 widens the gap
     assert ("fitted in turn with measurement_noise, it explains the gap together with it"
             in rep.summary())
+    # the first screen names both fitted values
+    assert "explain it: cutoff = " in rep.summary()
+    assert f"; noise = {fitted['measurement_noise']['noise']:.4g} x signal std." in rep.summary()
 
 
 def test_an_electro_optic_lowpass_under_noise_keeps_its_own_cutoff():

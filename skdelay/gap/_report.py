@@ -252,6 +252,17 @@ class GapReport:
         first one's share alone says nothing)?"""
         return bool(self.combined and self.combined.get("joint"))
 
+    def _pair_description(self, row):
+        """The best's fitted values, and its second effect's when there is one (``a; b``)."""
+        text = row["description"]
+        if not self.combined:
+            return text
+        table = self.combined.get("table")
+        second = self.combined["effects"][1]
+        if table is None or "description" not in table or not (table["effect"] == second).any():
+            return text
+        return f"{text}; {table.loc[table['effect'] == second, 'description'].iloc[0]}"
+
     def _why_second(self, best, nxt):
         """Why a runner-up that removes more of the gap than the best ranks second (a clause,
         empty when it removes less)."""
@@ -386,7 +397,7 @@ class GapReport:
                  else f"The effect {names[0]}")
         if self.explained == "fully":
             verb = "explain" if len(names) > 1 else "explains"
-            which = f"{label} {verb} it: {row['description']}."
+            which = f"{label} {verb} it: {self._pair_description(row)}."
         elif self._only_unchecked():
             # nothing is left over; only the independent evidence fails to back the fit
             failed = "; ".join(text for _, ok, text in self.checks if not ok)
