@@ -30,7 +30,9 @@ class FitResult:
     ``params`` are the fitted values (the starting guess when the fit failed
     after it, else empty).  ``applicable`` is False when the effect cannot act
     on these data at all (:class:`NotApplicable`: no spike in the record for
-    outliers, no delay parameter in the simulator).
+    outliers, no delay parameter in the simulator).  ``spread`` is True for the
+    second of a pair fitted in turn whose first effect started from one of its
+    :meth:`~skdelay.gap.Effect.starts` rather than from its own fit.
     """
 
     effect: str
@@ -44,6 +46,7 @@ class FitResult:
     n_evals: int = 0
     seconds: float = 0.0
     applicable: bool = True
+    spread: bool = False
     evaluation: object = field(default=None, repr=False, compare=False)
 
     @property
@@ -112,15 +115,12 @@ class _Objective:
             return np.inf
 
 
-def fit_effect(effect, problem, base_chain=(), final=True, start=None):
+def fit_effect(effect, problem, base_chain=(), final=True):
     """Fit ``effect`` on top of ``base_chain``; return a :class:`FitResult`.
 
     ``final=False`` skips the evaluation of the fitted effect on every
     indicator (``gap_after`` NaN): cross-validation only needs the parameters
-    of the half it fits on, and scores them on the other half.  ``start``
-    (parameters, or None) competes with the effect's own start: the search
-    begins at whichever leaves the smaller gap (a pair refitted in turn goes on
-    from where it stands).
+    of the half it fits on, and scores them on the other half.
 
     A candidate that cannot act (:class:`NotApplicable`), whose simulator or
     user-defined effect fails (:class:`CandidateFailed`) comes back with
@@ -130,10 +130,10 @@ def fit_effect(effect, problem, base_chain=(), final=True, start=None):
     # joblib's workers inherit no thread limit here; BLAS threads spinning against each
     # other made a 4e4-sample diagnosis 3 times slower with n_jobs=2 than with 1
     with threadpool_limits(limits=1, user_api="blas"):
-        return _fit(effect, problem, base_chain, final, start)
+        return _fit(effect, problem, base_chain, final)
 
 
-def _fit(effect, problem, base_chain, final=True, start=None):
+def _fit(effect, problem, base_chain, final=True):
     t0 = time.perf_counter()
     objective = _Objective(effect, problem, base_chain)
     guess = None
@@ -141,8 +141,6 @@ def _fit(effect, problem, base_chain, final=True, start=None):
         guess = initial_params(effect, problem)
         call_hook(effect, "check", guess, problem.simulator)
         guess = _chain_start(effect, problem, base_chain, guess, objective)
-        if start is not None and {**guess, **start} != guess:
-            guess = min((guess, {**guess, **start}), key=objective)
         params = call_hook(effect, "search", problem, dict(guess), objective)
         if not isinstance(params, dict):
             raise CandidateFailed(f"effect {effect.name!r}: search() returned "
