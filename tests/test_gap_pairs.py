@@ -287,14 +287,18 @@ def test_a_second_effect_must_answer_the_rest_that_called_for_it(monkeypatch):
     assert choose(None, spike, small, evaluations, rest_significant=True) == 0
 
 
+def _lowpass_noise(system, seed, cutoff, noise, dt, n=6000):
+    """``(system, record)``: a run of ``system`` behind a low-pass, under white noise."""
+    x = system.simulate(n, sample_dt=dt, random_state=seed)
+    y = get_effect("lowpass").apply(x, {"cutoff": cutoff}, sample_dt=dt)
+    return system, get_effect("measurement_noise").apply(y, {"noise": noise},
+                                                         random_state=seed + 1)
+
+
 def _ikeda_lowpass_noise(seed, cutoff, noise, dt=0.5, n=6000):
     from skdelay.systems import Ikeda
 
-    ik = Ikeda()
-    x = ik.simulate(n, sample_dt=dt, random_state=seed)
-    y = get_effect("lowpass").apply(x, {"cutoff": cutoff}, sample_dt=dt)
-    return ik, get_effect("measurement_noise").apply(y, {"noise": noise},
-                                                     random_state=seed + 1)
+    return _lowpass_noise(Ikeda(), seed, cutoff, noise, dt, n)
 
 
 @pytest.mark.parametrize(("seed", "cutoff", "noise"), [(641, 0.068, 0.56), (642, 0.05, 0.4)])
@@ -373,10 +377,7 @@ def test_an_electro_optic_lowpass_under_noise_keeps_its_own_cutoff():
     nothing at all: there no effect removed MIN_SHRINK alone.)"""
     from skdelay.systems import ElectroOpticOscillator
 
-    eo = ElectroOpticOscillator()
-    x = eo.simulate(6000, sample_dt=0.25, random_state=651)
-    y = get_effect("lowpass").apply(x, {"cutoff": 0.054}, sample_dt=0.25)
-    y = get_effect("measurement_noise").apply(y, {"noise": 0.034}, random_state=652)
+    eo, y = _lowpass_noise(ElectroOpticOscillator(), 651, 0.054, 0.034, dt=0.25)
     rep = diagnose_gap(y, eo, sample_dt=0.25, random_state=1, n_jobs=1,
                        effects=["measurement_noise", "lowpass", "timebase_mismatch",
                                 "dynamical_noise"])
@@ -406,10 +407,7 @@ def test_where_nothing_removes_min_shrink_alone_a_pair_fitted_in_turn_may(monkey
         return pick
 
     monkeypatch.setattr(_diagnose, "_better_first", spy)
-    eo = ElectroOpticOscillator()
-    x = eo.simulate(6000, sample_dt=0.25, random_state=672)
-    y = get_effect("lowpass").apply(x, {"cutoff": 0.054}, sample_dt=0.25)
-    y = get_effect("measurement_noise").apply(y, {"noise": 0.05}, random_state=673)
+    eo, y = _lowpass_noise(ElectroOpticOscillator(), 672, 0.054, 0.05, dt=0.25)
     rep = diagnose_gap(y, eo, sample_dt=0.25, random_state=1, n_jobs=1,
                        effects=["lowpass", "measurement_noise", "timebase_mismatch",
                                 "delay_mismatch"])
