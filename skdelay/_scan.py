@@ -574,10 +574,16 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
     does; the others get their exact distance.  When the search ends no
     unvisited point can be nearer than the ``k``-th neighbour, so the
     neighbourhood is the exact k-NN (up to the order of equal distances).  The
-    search starts from the previous query's neighbours one sample on (a
-    neighbour of ``q - 1`` stays near ``q`` after one step), which bounds it at
-    once.  Database times within ``theiler`` samples of the query are skipped
-    (``theiler < 0``: none).
+    search starts from the previous query's neighbours, which bounds it at
+    once.  When every database time is a query (a full-precision scan) the
+    queries run in the tree's order, each from the neighbours of the one before
+    it there, a point of the same leaf: consecutive queries then read the same
+    boxes and leaves from cache (on 10^5 noisy Mackey-Glass points, k = 30, one
+    thread: 4.65 / 5.39 / 6.77 us per query and tau at m = 2 / 3 / 5 against
+    5.57 / 6.15 / 6.98 in time order, the same neighbourhoods).  Otherwise they
+    run in time order, each from the neighbours of ``q - 1`` one sample on (a
+    neighbour of ``q - 1`` stays near ``q`` after one step).  Database times
+    within ``theiler`` samples of the query are skipped (``theiler < 0``: none).
 
     Adds the squared errors to ``sq[tau_index, batch]`` (batch ``i * n_batches
     // n_queries`` of query ``i``).
@@ -589,6 +595,8 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
     n_batches = sq.shape[1]
     n_q = q_t.size
     t_hi = db_t[n_db - 1]
+    # both are sorted and unique, so equal sizes and ends mean the same times
+    in_tree_order = n_q == n_db and q_t[0] == db_t[0] and q_t[n_q - 1] == t_hi
     data = np.empty((n_db, pp2))
     sdata = np.empty((n_db, pp2))
     sids = np.empty(n_db, dtype=np.int64)
@@ -618,7 +626,8 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
         for x in range(k):
             hj[x] = -1
         prev_q = np.int64(-2)
-        for i in range(n_q):
+        for r0 in range(n_q):
+            i = perm[r0] if in_tree_order else r0  # the query's place in q_t
             q = q_t[i]
             for f in range(p):
                 qp[f] = U[q, f]
@@ -626,13 +635,14 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
             for lag in range(m):
                 vq[lag] = s[q - lag]
                 vq[m + lag] = s[q - c - lag]
-            follows = q == prev_q + 1
+            follows = in_tree_order or q == prev_q + 1
             prev_q = q
-            for x in range(k):  # seeds: the last query's neighbours one sample on
+            for x in range(k):  # seeds: the last query's neighbours (one sample on in time)
                 j = hj[x]
                 if j >= 0:
                     in_heap[j] = False
-                    j += 1
+                    if not in_tree_order:
+                        j += 1
                 if follows and j > 0 and j <= t_hi and is_db[j] and not in_heap[j] \
                         and (theiler < 0 or abs(j - q) > theiler):
                     acc = 0.0

@@ -313,6 +313,10 @@ def test_tree_search_is_the_exact_knn(every_point):
     tree = forecast_error_curve(s, search="tree", **kw)
     exact = forecast_error_curve(s, search="exact", **kw)
     np.testing.assert_allclose(tree.to_numpy(), exact.to_numpy(), rtol=1e-9)
+    # every point a query runs the queries in the tree's order: each error still counts in
+    # its own time's batch, so the standard errors are those of the exact search
+    np.testing.assert_allclose(tree.attrs["se"].to_numpy(), exact.attrs["se"].to_numpy(),
+                               rtol=1e-9)
     assert tree.attrs["exact_fraction"] == {2: 1.0, 4: 1.0}
     # the candidate lists miss true neighbours here (what the tree search is for)
     cand = forecast_error_curve(s, search="candidates", **kw)
