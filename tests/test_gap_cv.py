@@ -455,6 +455,41 @@ def test_halves_score_the_spikes_counted_on_the_whole_record():
     assert row["cross_validated"] and row["shrink"] > 0.5
 
 
+def test_a_rough_half_without_the_counted_spikes_cannot_test_them():
+    """Ikeda at step 0.25, four spikes all in the second half (benchmark seed 20.5e6:
+    5.4-10 std; here 7-12, which this record needs for a significant gap).  The record
+    is rough, so the spike-free first half does not
+    refuse the outliers outright: it reads "spikes too small to be seen".  That reading,
+    scored on the second half, failed (cross-validated shrink 0.15 against 0.93 in-sample)
+    and nothing was named.  A half that holds none of the counted spikes cannot test them,
+    so the outliers keep their in-sample share and lead."""
+    from skdelay.gap import Outliers
+    from skdelay.gap._diagnose import pin_choices
+    from skdelay.systems import Ikeda
+
+    ikeda, dt = Ikeda(), 0.25
+    x = ikeda.simulate(6000, sample_dt=dt, random_state=7105)
+    real = x.copy()
+    for i, height in zip((3340, 3740, 4770, 5320), (8.0, 9.0, -7.0, 12.0)):
+        real[i] += height * x.std()
+    problem = GapProblem(real, ikeda, sample_dt=dt, n_sims=3, random_state=1)
+    first, second = problem.split()
+    out = Outliers()
+    assert out.counted(problem) and out.counted(second)
+    assert out.initial(first).get("unseen")  # its own reading: no NotApplicable there
+    whole = SimpleNamespace(effect="outliers", ok=True, params={"rate": 4 / 6000, "size": 9.0})
+    pin_choices((first, second), [whole], problem)
+    with pytest.raises(NotApplicable, match="none of the spikes"):
+        out.initial(first)
+    assert out.initial(second)["rate"] == pytest.approx(4 / 6000)
+
+    rep = diagnose_gap(real, ikeda, sample_dt=dt, random_state=2, n_jobs=1,
+                       effects=["outliers", "measurement_noise", "dynamical_noise"])
+    assert rep.best_effect == "outliers", rep.effects[["effect", "shrink", "status"]]
+    row = rep.effects.set_index("effect").loc["outliers"]
+    assert not row["cross_validated"] and row["shrink"] == row["shrink_fit"] > 0.8
+
+
 def test_a_half_searches_the_delay_near_the_whole_records():
     """``pin_choices`` pins the whole record's delay; a half searches within
     SEARCH_HALF_WIDTH samples of it (the window's search was two thirds of a 4e4-sample
