@@ -32,8 +32,8 @@ Neighbour search (``ScanOptions.search``):
 * ``"tree"`` -- the exact k-NN (k-NN only): for every tau a k-d tree on the
   leading principal components of both windows (:func:`window_components`,
   :data:`TREE_COMPONENTS` per window), searched depth-first from the previous
-  query's neighbours (one sample on; at full precision the queries run in the
-  tree's order, from the previous one's there); the projected distance bounds the
+  query's neighbours (the queries run in the tree's order, each from the
+  previous one's there); the projected distance bounds the
   2m-dimensional one from below, so a box or point is pruned only when it
   cannot be nearer than the current ``k``-th neighbour, and the full distance
   is computed for the few points left (:func:`tree_cells`).  Smooth windows
@@ -582,15 +582,19 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
     unvisited point can be nearer than the ``k``-th neighbour, so the
     neighbourhood is the exact k-NN (up to the order of equal distances).  The
     search starts from the previous query's neighbours, which bounds it at
-    once.  When every database time is a query (a full-precision scan) the
-    queries run in the tree's order, each from the neighbours of the one before
-    it there, a point of the same leaf: consecutive queries then read the same
-    boxes and leaves from cache (on 10^5 noisy Mackey-Glass points, k = 30, one
-    thread: 4.65 / 5.39 / 6.77 us per query and tau at m = 2 / 3 / 5 against
-    5.57 / 6.15 / 6.98 in time order, the same neighbourhoods).  Otherwise they
-    run in time order, each from the neighbours of ``q - 1`` one sample on (a
-    neighbour of ``q - 1`` stays near ``q`` after one step).  Database times
-    within ``theiler`` samples of the query are skipped (``theiler < 0``: none).
+    once.  When every query is a database time (the scan's queries always are)
+    the queries run in the tree's order, each from the neighbours of the one
+    before it there, a point of the same or a nearby leaf: its neighbours are
+    near, and consecutive queries read the same boxes and leaves from cache.
+    On 10^5 noisy Mackey-Glass points (k = 30, one thread) every point a query
+    took 4.65 / 5.39 / 6.77 us per query and tau at m = 2 / 3 / 5 against 5.57 /
+    6.15 / 6.98 in time order, and 10^4 (3 * 10^4) random queries 8-13 %
+    (14-18 %) less time than in time order, with the same neighbourhoods; at 10^3
+    the tree builds dominate.  Otherwise they run in time order, each from the
+    neighbours of ``q - 1`` one sample on (a neighbour of ``q - 1`` stays near
+    ``q`` after one step).  Each query's error still counts in its own batch
+    (its place in ``q_t``).  Database times within ``theiler`` samples of the
+    query are skipped (``theiler < 0``: none).
 
     Adds the squared errors to ``sq[tau_index, batch]`` (batch ``i * n_batches
     // n_queries`` of query ``i``).
@@ -602,8 +606,15 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
     n_batches = sq.shape[1]
     n_q = q_t.size
     t_hi = db_t[n_db - 1]
-    # both are sorted and unique, so equal sizes and ends mean the same times
-    in_tree_order = n_q == n_db and q_t[0] == db_t[0] and q_t[n_q - 1] == t_hi
+    # queries that are database times run in the tree's order (both sorted and unique)
+    q_row = np.searchsorted(db_t, q_t)
+    in_tree_order = True
+    for i in range(n_q):
+        if q_row[i] >= n_db or db_t[q_row[i]] != q_t[i]:
+            in_tree_order = False
+            break
+    tree_pos = np.empty(n_db, dtype=np.int64)
+    q_order = np.arange(n_q)
     data = np.empty((n_db, pp2))
     sdata = np.empty((n_db, pp2))
     sids = np.empty(n_db, dtype=np.int64)
@@ -626,6 +637,10 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
                 data[r, f] = U[j, f]
                 data[r, p + f] = U[j - c, f]
         perm, start, stop, left, right, box_lo, box_hi = build_tree(data, leaf)
+        if in_tree_order:
+            for r in range(n_db):
+                tree_pos[perm[r]] = r
+            q_order = np.argsort(tree_pos[q_row])
         for r in range(n_db):
             sids[r] = db_t[perm[r]]
             for f in range(pp2):
@@ -634,7 +649,7 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
             hj[x] = -1
         prev_q = np.int64(-2)
         for r0 in range(n_q):
-            i = perm[r0] if in_tree_order else r0  # the query's place in q_t
+            i = q_order[r0]  # the query's place in q_t
             q = q_t[i]
             for f in range(p):
                 qp[f] = U[q, f]
