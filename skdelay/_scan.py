@@ -582,18 +582,19 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
     unvisited point can be nearer than the ``k``-th neighbour, so the
     neighbourhood is the exact k-NN (up to the order of equal distances).  The
     search starts from the previous query's neighbours, which bounds it at
-    once.  Every query is a database time (a ``ValueError`` otherwise), and the
-    queries run in the tree's order, each from the neighbours of the one before
-    it there, a point of the same or a nearby leaf: its neighbours are near, and
-    consecutive queries read the same boxes and leaves from cache.  Before, they
-    ran in time order, each from the neighbours of ``q - 1`` one sample on.  On
-    10^5 noisy Mackey-Glass points (k = 30, one thread) every point a query took
-    4.65 / 5.39 / 6.77 us per query and tau at m = 2 / 3 / 5 against 5.57 / 6.15 /
-    6.98 in time order, and 10^4 (3 * 10^4) random queries 8-13 % (14-18 %) less
-    time, with the same neighbourhoods; at 10^3 the tree builds dominate.  Each
-    query's error still counts in its own batch (its place in ``q_t``).  Database
-    times within ``theiler`` samples of the query are skipped (``theiler < 0``:
-    none).
+    once.  When every query is a database time (the scan's queries always are)
+    the queries run in the tree's order, each from the neighbours of the one
+    before it there, a point of the same or a nearby leaf: its neighbours are
+    near, and consecutive queries read the same boxes and leaves from cache.
+    On 10^5 noisy Mackey-Glass points (k = 30, one thread) every point a query
+    took 4.65 / 5.39 / 6.77 us per query and tau at m = 2 / 3 / 5 against 5.57 /
+    6.15 / 6.98 in time order, and 10^4 (3 * 10^4) random queries 8-13 %
+    (14-18 %) less time than in time order, with the same neighbourhoods; at 10^3
+    the tree builds dominate.  Otherwise they run in time order, each from the
+    neighbours of ``q - 1`` one sample on (a neighbour of ``q - 1`` stays near
+    ``q`` after one step).  Each query's error still counts in its own batch
+    (its place in ``q_t``).  Database times within ``theiler`` samples of the
+    query are skipped (``theiler < 0``: none).
 
     Adds the squared errors to ``sq[tau_index, batch]`` (batch ``i * n_batches
     // n_queries`` of query ``i``).
@@ -605,15 +606,22 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
     n_batches = sq.shape[1]
     n_q = q_t.size
     t_hi = db_t[n_db - 1]
-    q_row = np.searchsorted(db_t, q_t)  # both sorted and unique
+    # queries that are database times run in the tree's order (both sorted and unique)
+    q_row = np.searchsorted(db_t, q_t)
+    in_tree_order = True
     for i in range(n_q):
         if q_row[i] >= n_db or db_t[q_row[i]] != q_t[i]:
-            raise ValueError("tree_cells: every query must be a database time.")
+            in_tree_order = False
+            break
     tree_pos = np.empty(n_db, dtype=np.int64)
+    q_order = np.arange(n_q)
     data = np.empty((n_db, pp2))
     sdata = np.empty((n_db, pp2))
     sids = np.empty(n_db, dtype=np.int64)
     in_heap = np.zeros(t_hi + 2, dtype=np.bool_)
+    is_db = np.zeros(t_hi + 2, dtype=np.bool_)
+    for r in range(n_db):
+        is_db[db_t[r]] = True
     qp = np.empty(pp2)
     hd = np.empty(k)
     hj = np.empty(k, dtype=np.int64)
@@ -629,15 +637,17 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
                 data[r, f] = U[j, f]
                 data[r, p + f] = U[j - c, f]
         perm, start, stop, left, right, box_lo, box_hi = build_tree(data, leaf)
-        for r in range(n_db):
-            tree_pos[perm[r]] = r
-        q_order = np.argsort(tree_pos[q_row])  # the queries in the tree's order
+        if in_tree_order:
+            for r in range(n_db):
+                tree_pos[perm[r]] = r
+            q_order = np.argsort(tree_pos[q_row])
         for r in range(n_db):
             sids[r] = db_t[perm[r]]
             for f in range(pp2):
                 sdata[r, f] = data[perm[r], f]
         for x in range(k):
             hj[x] = -1
+        prev_q = np.int64(-2)
         for r0 in range(n_q):
             i = q_order[r0]  # the query's place in q_t
             q = q_t[i]
@@ -647,11 +657,16 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
             for lag in range(m):
                 vq[lag] = s[q - lag]
                 vq[m + lag] = s[q - c - lag]
-            for x in range(k):  # seeds: the previous query's neighbours
+            follows = in_tree_order or q == prev_q + 1
+            prev_q = q
+            for x in range(k):  # seeds: the last query's neighbours (one sample on in time)
                 j = hj[x]
                 if j >= 0:
                     in_heap[j] = False
-                if j >= 0 and not in_heap[j] and (theiler < 0 or abs(j - q) > theiler):
+                    if not in_tree_order:
+                        j += 1
+                if follows and j > 0 and j <= t_hi and is_db[j] and not in_heap[j] \
+                        and (theiler < 0 or abs(j - q) > theiler):
                     acc = 0.0
                     for lag in range(m):
                         d1 = vq[lag] - s[j - lag]

@@ -324,18 +324,6 @@ def test_tree_search_is_the_exact_knn(every_point):
     assert min(cand.attrs["exact_fraction"].values()) < 1
 
 
-def test_tree_search_takes_database_times_as_queries_only():
-    # the queries run in the tree's order, found by their rows in the database
-    from skdelay._scan import TREE_LEAF_SIZE, tree_cells, window_components
-
-    s = measured_mackey_glass(600, 30, noise=0.01, bits=None, seed=5)
-    db_t = np.arange(20, 500)
-    U = window_components(s, 2, db_t, 2)
-    with pytest.raises(ValueError, match="database time"):
-        tree_cells(s, U, np.array([10, 30]), db_t, 2, np.array([5]), 5, 3, 1e-3, 1, 0.0,
-                   TREE_LEAF_SIZE, np.zeros((1, 2)))
-
-
 def test_tree_search_stays_exact_on_rough_windows():
     # white noise: the two leading components hold little of a window, so the projected
     # bound is loose -- slower, but the neighbours (and sigma) must not change
