@@ -590,11 +590,12 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
     took 4.65 / 5.39 / 6.77 us per query and tau at m = 2 / 3 / 5 against 5.57 /
     6.15 / 6.98 in time order, and 10^4 (3 * 10^4) random queries 8-13 %
     (14-18 %) less time than in time order, with the same neighbourhoods; at 10^3
-    the tree builds dominate.  Otherwise they run in time order, each from the
-    neighbours of ``q - 1`` one sample on (a neighbour of ``q - 1`` stays near
-    ``q`` after one step).  Each query's error still counts in its own batch
-    (its place in ``q_t``).  Database times within ``theiler`` samples of the
-    query are skipped (``theiler < 0``: none).
+    the tree builds dominate.  Otherwise (the held-out queries of a time-series
+    split, scored against a training database) they run in time order, each
+    from the neighbours of ``q - 1`` one sample on (a neighbour of ``q - 1``
+    stays near ``q`` after one step).  Each query's error still counts in its
+    own batch (its place in ``q_t``).  Database times within ``theiler`` samples
+    of the query are skipped (``theiler < 0``: none).
 
     Adds the squared errors to ``sq[tau_index, batch]`` (batch ``i * n_batches
     // n_queries`` of query ``i``).

@@ -324,6 +324,30 @@ def test_tree_search_is_the_exact_knn(every_point):
     assert min(cand.attrs["exact_fraction"].values()) < 1
 
 
+def test_tree_search_of_held_out_queries_is_the_exact_knn():
+    # queries that are not database times (a time-series split's test fold against its
+    # training rows) run in time order, not the tree's, and stay exact
+    from skdelay._scan import TREE_LEAF_SIZE, tree_cells, window_components
+
+    s = measured_mackey_glass(1200, 30, noise=0.01, bits=None, seed=5)
+    db_t, q_t = np.arange(40, 800), np.arange(840, 1150)
+    sq = {}
+    for name, queries in (("held_out", q_t), ("one_by_one", None)):
+        U = window_components(s, 2, db_t, 2)
+        out = np.zeros((1, q_t.size))  # one batch per query: every error on its own
+        if queries is not None:
+            tree_cells(s, U, queries, db_t, 2, np.array([29]), 6, 3, 1e-3, 1, 0.0,
+                       TREE_LEAF_SIZE, out)
+        else:  # each query alone: no seeds from a neighbour in time
+            for i, q in enumerate(q_t):
+                one = np.zeros((1, 1))
+                tree_cells(s, U, np.array([q]), db_t, 2, np.array([29]), 6, 3, 1e-3, 1,
+                           0.0, TREE_LEAF_SIZE, one)
+                out[0, i] = one[0, 0]
+        sq[name] = out
+    np.testing.assert_allclose(sq["held_out"], sq["one_by_one"], rtol=1e-9)
+
+
 def test_tree_search_stays_exact_on_rough_windows():
     # white noise: the two leading components hold little of a window, so the projected
     # bound is loose -- slower, but the neighbours (and sigma) must not change
