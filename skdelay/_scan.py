@@ -32,8 +32,8 @@ Neighbour search (``ScanOptions.search``):
 * ``"tree"`` -- the exact k-NN (k-NN only): for every tau a k-d tree on the
   leading principal components of both windows (:func:`window_components`,
   :data:`TREE_COMPONENTS` per window), searched depth-first from the previous
-  query's neighbours (the queries run in the tree's order, each from the
-  previous one's there); the projected distance bounds the
+  query's neighbours (queries that are database times run in the tree's
+  order, each from the previous one's there); the projected distance bounds the
   2m-dimensional one from below, so a box or point is pruned only when it
   cannot be nearer than the current ``k``-th neighbour, and the full distance
   is computed for the few points left (:func:`tree_cells`).  Smooth windows
@@ -582,8 +582,8 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
     unvisited point can be nearer than the ``k``-th neighbour, so the
     neighbourhood is the exact k-NN (up to the order of equal distances).  The
     search starts from the previous query's neighbours, which bounds it at
-    once.  When every query is a database time (the scan's queries always are)
-    the queries run in the tree's order, each from the neighbours of the one
+    once.  When every query is a database time (as in every scan without a
+    time-series split) the queries run in the tree's order, each from the neighbours of the one
     before it there, a point of the same or a nearby leaf: its neighbours are
     near, and consecutive queries read the same boxes and leaves from cache.
     On 10^5 noisy Mackey-Glass points (k = 30, one thread) every point a query
