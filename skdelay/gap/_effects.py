@@ -192,6 +192,13 @@ class Effect:
     anchored_at_start = False
     fits_anchored_parts = False
 
+    def line_frequencies(self, params):
+        """Frequencies (cycles per time unit) of the only spectral lines this effect adds, or
+        None when it moves the spectrum over a band (the default).  A diagnosis reads a
+        spectral discrepancy away from these lines, left after the effect, as another
+        cause's mark: no fit of this effect can leave one there."""
+        return None  # noqa: RET501 -- None is the documented "over a band"
+
     def has_local_mark(self, problem):
         """Does the record hold a localised mark of this effect that no indicator of the
         problem measures (a sub-threshold spectral line)?  The second round of a diagnosis

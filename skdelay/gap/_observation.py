@@ -185,6 +185,10 @@ class PeriodicInterference(Effect):
             return self._line_params(problem, (problem.lines or hints)[0].frequency)
         return super().initial(problem)
 
+    def line_frequencies(self, params):
+        """The hum's one frequency: a sinusoid moves no other bin of the spectrum."""
+        return [float(params["frequency"])]
+
     def has_local_mark(self, problem):
         """A sub-threshold line candidate (``problem.line_hints``): a line the scan found
         but could not call significant has no line indicator, so no indicator says it is
