@@ -125,6 +125,29 @@ def test_cross_validation_pools_both_folds_unless_an_effect_is_anchored():
         assert params == ({"level": 1.0}, None)
 
 
+def test_a_drift_is_untested_when_one_half_holds_no_gap_of_its_own():
+    """A half within its no-gap threshold while the other is far beyond it holds none of a
+    discrepancy that builds up over the record: neither fold can test a drift (fitted there
+    it extrapolates flat, scored there it has nothing to remove; held-out-step benchmark
+    seed 21.1e6, a laser's beta 0.27 -> 0.107, first half 4.2 against 11.6, second 226),
+    so it stays uncross-validated.  A stationary effect is still tested both ways, and a
+    drift is tested as before when both halves are quiet or both show the gap."""
+    from joblib import Parallel
+
+    from skdelay.gap._diagnose import cross_validate
+
+    quiet, loud = _Part(1.0, 0.5), _Part(1.2, 0.25)
+    quiet.before = SimpleNamespace(gap=1.0)
+    effects = [_Level(), _AnchoredLevel()]
+    _, scores, _ = cross_validate(effects, (quiet, loud), Parallel(n_jobs=1))
+    assert "anchored_level" not in scores
+    assert scores["level_shift"][1] == ({"level": 1.0}, {"level": 1.2})
+    for parts in [(_Part(1.0, 0.5), _Part(1.2, 0.25)), (quiet, _Part(1.2, 0.25))]:
+        parts[1].before = parts[0].before
+        _, scores, _ = cross_validate(effects, parts, Parallel(n_jobs=1))
+        assert scores["anchored_level"][1] == ({"level": 1.0}, None)
+
+
 def test_a_drift_fits_a_later_part_on_the_ramp_through_the_records_start():
     """On the record's second half (``anchor`` 0.5-1) the drift's search scans ramps whose
     line passes through the simulator's value at the record's start, so carried back over

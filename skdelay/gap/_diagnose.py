@@ -834,11 +834,16 @@ def cross_validate(effects, parts, parallel, chain=()):
     by_effect = {}
     for (eff, f), res in zip(jobs, fits):
         by_effect.setdefault(eff.name, []).append((eff, f, res))
+    # a half whose own gap is within its no-gap threshold, while the other's is not, holds
+    # none of a discrepancy that builds up over the record: see _drift_untestable
+    quiet = [p.before.gap <= no_gap_threshold(p.null_gaps, MIN_GAP) for p in parts]
     out = {}
     for name, rows in by_effect.items():
         params, after, b, n, failed, tested = [None, None], 0.0, 0.0, 0.0, False, False
         for eff, f, res in rows:
             fit, score = folds[f]
+            if _drift_untestable(eff, quiet, fit, score):
+                continue
             if not (res.applicable and _applies(eff, parts[score])):
                 # a half lacks the effect's signature altogether, so this fold cannot test
                 # it.  Mackey-Glass with spikes at a rate of 0.0005 (6000 samples): all
@@ -863,6 +868,26 @@ def cross_validate(effects, parts, parallel, chain=()):
             continue  # no fold could test it: the candidate stays uncross-validated
         out[name] = (np.nan if failed else after, tuple(params), b, n)
     return (float(sum(before.values())), out, float(sum(null.values())))
+
+
+def _drift_untestable(effect, quiet, fit, score):
+    """Can the fold fitted on half ``fit`` and scored on half ``score`` not test ``effect``?
+
+    So for an effect whose parameters change over the record (``anchored_at_start``: a
+    drift) when one half shows no gap of its own (``quiet``) and the other does: fitted on
+    the quiet half it sees none of the change and its extrapolation is flat; scored there
+    it has nothing to remove.  Both folds involve the quiet half, so the drift stays
+    uncross-validated, as outliers do whose spikes all sit in one half.  CO2 laser, beta
+    0.27 -> 0.107 over 6000 samples (held-out-step benchmark seed 21.1e6): the first half's
+    gap was 4.2 against its threshold 11.6, the second's 226 against 23.1; fitted on the
+    second half the drift read 0.187 -> 0.105 (truth 0.189 -> 0.107), fitted on the first
+    0.27 -> 0.226, and the held-out halves kept 222 of 230 (in-sample shrink 0.98): nothing
+    was named.  When both halves are quiet (a record at the edge of significance) the folds
+    test it as any other effect.
+    """
+    if not getattr(effect, "anchored_at_start", False) or quiet[0] == quiet[1]:
+        return False
+    return bool(quiet[fit] or quiet[score])
 
 
 def _applies(effect, part):
