@@ -593,7 +593,8 @@ def _line_freqs(chain):
     (:meth:`Effect.line_frequencies`), else None."""
     out = []
     for effect, params in chain:
-        freqs = effect.line_frequencies(params)
+        hook = getattr(effect, "line_frequencies", None)  # a duck-typed effect: broadband
+        freqs = hook(params) if hook is not None else None
         if freqs is None:
             return None
         out.extend(freqs)
