@@ -228,9 +228,11 @@ def test_a_slow_hum_over_a_strong_low_frequency_continuum_is_found_on_top_of_the
 
 def test_a_sub_threshold_line_calls_for_nothing_once_the_rest_is_at_the_runs_level():
     """A mark no indicator measures (a hint) is followed only while what the best effect
-    leaves exceeds the runs' own median gap among themselves: an electro-optic delay fit
-    left 0.15 (runs 1.32), and a 2.3 %-std hum at a hint removed 97 % of that and was named
-    as a second cause (benchmark seed 17.3e6)."""
+    leaves exceeds every gap of the runs among themselves: an electro-optic delay fit left
+    0.15 (runs 1.32), and a 2.3 %-std hum at a hint removed 97 % of that and was named as a
+    second cause (benchmark seed 17.3e6); an Ikeda clipping left 1.32 among runs' gaps of
+    0-1.9 (median 1.27), and a hum at the dynamics' main frequency was named on top
+    (benchmark seed 21.5e6)."""
     from types import SimpleNamespace
 
     from skdelay.gap._diagnose import _marked
@@ -241,6 +243,8 @@ def test_a_sub_threshold_line_calls_for_nothing_once_the_rest_is_at_the_runs_lev
     best = SimpleNamespace(name="delay_mismatch", has_local_mark=lambda p: True)
     cands = [hum, noise, best]
     assert _marked(problem, cands, "delay_mismatch", SimpleNamespace(gap=0.15)) == set()
+    # above the median (1.26) but within the runs' own gaps
+    assert _marked(problem, cands, "clipping", SimpleNamespace(gap=1.32)) == set()
     assert _marked(problem, cands, "delay_mismatch", SimpleNamespace(gap=3.0)) == {
         "periodic_interference"}
 
