@@ -438,6 +438,24 @@ def test_an_untested_candidate_ranks_by_its_in_sample_share_against_tested_ones(
     assert df.loc[order, "effect"].iloc[0] == "outliers"
 
 
+def test_untested_candidates_among_themselves_rank_by_their_in_sample_shares():
+    """Benchmark seed 21.0e6: an electro-optic record clipped below, its clipped samples all
+    in one half, so neither the clipping (0.89 in-sample) nor a drift (0.11, the other half
+    quiet) could be tested; the drift was placed first and nothing was named."""
+    import pandas as pd
+
+    from skdelay.gap._diagnose import _untested_in_place
+
+    df = pd.DataFrame({
+        "effect": ["parameter_drift", "clipping", "dynamical_noise", "lowpass"],
+        "status": ["ok", "ok", "ok", "ok"],
+        "shrink": [0.113, 0.888, 0.027, 0.013],
+        "shrink_fit": [0.113, 0.888, 0.027, 0.013]})
+    order = _untested_in_place(df, {"dynamical_noise": (22.0, {}), "lowpass": (22.3, {})})
+    assert list(df.loc[order, "effect"]) == ["clipping", "parameter_drift", "dynamical_noise",
+                                             "lowpass"]
+
+
 def test_halves_score_the_spikes_counted_on_the_whole_record():
     """Five spikes, one in the first half and four in the second (benchmark seed 15.0e6):
     each half measured its own, was scored on the other half's Poisson luck, and the
