@@ -131,7 +131,8 @@ def test_a_drift_is_untested_when_one_half_holds_no_gap_of_its_own():
     it extrapolates flat, scored there it has nothing to remove; held-out-step benchmark
     seed 21.1e6, a laser's beta 0.27 -> 0.107, first half 4.2 against 11.6, second 226),
     so it stays uncross-validated.  A stationary effect is still tested both ways, and a
-    drift is tested as before when both halves are quiet or both show the gap."""
+    drift is tested as before when both halves show the gap.  When both are quiet the split
+    tests nothing (a held-out half has nothing to remove beyond its runs' scatter)."""
     from joblib import Parallel
 
     from skdelay.gap._diagnose import cross_validate
@@ -142,10 +143,17 @@ def test_a_drift_is_untested_when_one_half_holds_no_gap_of_its_own():
     _, scores, _ = cross_validate(effects, (quiet, loud), Parallel(n_jobs=1))
     assert "anchored_level" not in scores
     assert scores["level_shift"][1] == ({"level": 1.0}, {"level": 1.2})
-    for parts in [(_Part(1.0, 0.5), _Part(1.2, 0.25)), (quiet, _Part(1.2, 0.25))]:
-        parts[1].before = parts[0].before
-        _, scores, _ = cross_validate(effects, parts, Parallel(n_jobs=1))
-        assert scores["anchored_level"][1] == ({"level": 1.0}, None)
+    loud_pair = (_Part(1.0, 0.5), _Part(1.2, 0.25))
+    _, scores, _ = cross_validate(effects, loud_pair, Parallel(n_jobs=1))
+    assert scores["anchored_level"][1] == ({"level": 1.0}, None)
+    quiet_pair = (quiet, _Part(1.2, 0.25))
+    quiet_pair[1].before = quiet.before
+    before, scores, null = cross_validate(effects, quiet_pair, Parallel(n_jobs=1))
+    assert scores == {} and before == 2.0 and null == 0.75
+    # ... but a second round's rest on top of a chain is tested as before
+    _, scores, _ = cross_validate(effects, quiet_pair, Parallel(n_jobs=1),
+                                  chain=[(_Level(), ({"level": 0.0}, {"level": 0.0}))])
+    assert set(scores) == {"level_shift", "anchored_level"}
 
 
 def test_a_drift_fits_a_later_part_on_the_ramp_through_the_records_start():
