@@ -402,7 +402,9 @@ class ParameterDrift(Effect):
     the beginning and end of the record; passed as ``simulate(**{parameter:
     (start, end)})``).  Signature: segment statistics that change along the
     record; the search scans a few end values per parameter and refines the
-    best one.
+    best two.  A fit whose runner-up parameter leaves the same gap within the runs'
+    scatter also holds ``also``, a text naming that drift (the record cannot tell the
+    two apart; :meth:`describe` says so).
 
     Examples
     --------
