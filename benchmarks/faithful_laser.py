@@ -8,8 +8,9 @@ parameter set of :class:`skdelay.systems.CO2LaserFeedback` -- by default
 sampling, dynamical noise on the feedback, 0.5 % measurement noise, 12-bit ADC,
 normalised), takes each m's delay from the forecast-error dip on a grid of
 +-15 samples around the physical delay, and runs
-:func:`skdelay.dynamics.minimal_embedding` (m = 1..5, the demo's models
-:data:`skdelay._demo.DEMO_MODEL`, ``flow=True``).  Prints m_d and, per m, every
+:func:`skdelay.dynamics.minimal_embedding` (m = 1..5, ``flow=True``) with the
+demo's models: neighbours per parameter and ridge chosen by time-series
+cross-validation of forecasts on the record (``select_model_options`` for m = 5).  Prints m_d and, per m, every
 criterion with its band, so that the reason for each verdict is visible.  What
 the paper reports: m_d <= 5 at every delay.
 
@@ -36,12 +37,10 @@ import pandas as pd
 from skdelay import forecast_error_curve, locate_dips
 from skdelay.datasets import LASER_BITS, LASER_DYNAMICAL_NOISE, LASER_MEASUREMENT_NOISE
 from skdelay.dynamics import SpectrumOptions, minimal_embedding
-from skdelay.model_selection import ModelOptions
+from skdelay.model_selection import select_model_options
 from skdelay.systems import CO2LaserFeedback, measure
 
 PRESETS = ("buenner2000",)
-#: the demo's models (100 neighbours, ridge 3e-2)
-DEMO_MODEL = ModelOptions(n_neighbors=100, ridge=3e-2)
 SEEDS = {50: 5001, 150: 15001, 400: 40001}  # those of skdelay.datasets.load_laser
 DELAYS = (50, 150, 400)
 COLUMNS = ["tau", "faithful", "histogram", "histogram_band", "spectrum", "spectrum_band",
@@ -93,7 +92,8 @@ def main(argv=None):
             taus = {int(m): int(dips.loc[m, "tau_best"]) for m in dips.index}
             length = min(args.n // 8, 10_000)
             control = control_records(preset, delay, length, seed=args.seed + delay)
-            res = minimal_embedding(x, tau=taus, m_max=5, model=DEMO_MODEL,
+            model = select_model_options(x, 5, taus[5], random_state=args.seed).options
+            res = minimal_embedding(x, tau=taus, m_max=5, model=model,
                                     spectrum=SpectrumOptions(
                                         n_steps=min(args.n, args.spectrum_steps), flow=True),
                                     control=control, random_state=args.seed)
@@ -107,6 +107,7 @@ def main(argv=None):
                          "control within bands": " ".join(
                              f"{k[:4]}{'+' if v else '-'}"
                              for k, v in res.table.attrs["control_pass"].items()),
+                         "k per parameter, ridge": f"{model.per_parameter:g}, {model.ridge:g}",
                          "denoised": res.denoised,
                          "seconds": round(dt, 1), "load": round(os.getloadavg()[0], 2)})
             lines.append(f"{preset} delay={delay}: m_d={res.m_d} ({res.reason or 'ok'})")

@@ -245,13 +245,13 @@ def cross_prediction_table(results):
     return out
 
 
-#: the settings of the analyses' models (delay, minimal faithful m, validation), those of
-#: ``benchmarks/paper_table.py``: hand-chosen for an earlier laser regime.  They no longer
-#: give the table's spectrum: with m = 5 at step 1 they gave lambda_max 4.45 / 2.36 / 1.28
-#: per ms against the exact 2.29 / 0.97 / 0.446, because 5 us windows do not resolve the
-#: state between the laser's pulses (``benchmarks/out/spectrum_settings.txt``).  The
-#: table's spectrum comes from the cross-validated spectrum model instead (run_demo).
-DEMO_MODEL = ModelOptions(n_neighbors=100, ridge=3e-2)
+#: The analyses' models (minimal faithful m, validation, cross-prediction) take their
+#: neighbourhood size and ridge from the data: ``select_model=True``, time-series
+#: cross-validation of one-step and iterated forecasts on each record
+#: (:func:`~skdelay._model_selection.select_model_options`), starting from the generic
+#: :class:`~skdelay._model.ModelOptions`.  The hand-chosen k = 100, ridge 3e-2 of earlier
+#: versions were picked against the exact spectra of an earlier laser regime.
+DEMO_MODEL = ModelOptions()
 #: Free runs scored per test fold by the demo's spectrum-model selection.  More runs do
 #: not make the choice among the second stage's settings stable (their errors lie within
 #: one standard error of each other, which the table's range columns show), and the
@@ -334,8 +334,8 @@ def run_demo(*, delays=(50, 150, 400), n_samples=None, exact=True, n_exact=20,
 
     For each delay: :func:`skdelay.datasets.load_laser`, a delay scan on a grid
     around the physical delay (``delay +- 15`` samples) and the rest of
-    :func:`~skdelay._analysis.analyze_series` with the models of :data:`DEMO_MODEL`
-    (``flow=True``);
+    :func:`~skdelay._analysis.analyze_series` with cross-validated model settings
+    (``select_model=True``, from :data:`DEMO_MODEL`; ``flow=True``);
     then the paper's table (N positive exponents,
     lambda_max, D_KY, h_KS, D_KY/tau) with the simulator's exact values
     beside, and the rescaled spectra for the collapse figure.
@@ -360,7 +360,7 @@ def run_demo(*, delays=(50, 150, 400), n_samples=None, exact=True, n_exact=20,
     select_spectrum : bool, default=True
         The table's spectrum from a model chosen by time-series cross-validation
         of free runs at the estimated delay (:func:`spectrum_model`); False:
-        the analyses' largest-m model with :data:`DEMO_MODEL`.
+        the analyses' largest-m model (its settings cross-validated too).
     random_state, n_jobs, verbose, progress
         As in :func:`analyze_series`.
 
@@ -382,7 +382,8 @@ def run_demo(*, delays=(50, 150, 400), n_samples=None, exact=True, n_exact=20,
             m=DEFAULT_M, tau_min=max(1, d - 15), tau_max=d + 15,
             sample_dt=float(data.sample_dt), n_queries=min(n_samples, 2000),
             n_run=min(n_samples // 4, 10_000), n_spectrum_steps=min(n_samples, 40_000),
-            model=DEMO_MODEL, flow=True, time_unit="us" if scale == 1000.0 else "time unit")
+            model=DEMO_MODEL, select_model=True, flow=True,
+            time_unit="us" if scale == 1000.0 else "time unit")
         res = analyze_series(
             data.series, options, random_state=random_state, n_jobs=n_jobs, verbose=verbose,
             progress=lambda msg, _d=delay: say(f"tau0 = {_d}: {msg}"),
@@ -410,6 +411,9 @@ def run_demo(*, delays=(50, 150, 400), n_samples=None, exact=True, n_exact=20,
                "D_KY": bound + _fmt(row["D_KY"]), "h_KS": _fmt(row["h_KS"] * scale),
                "D_KY/tau": bound + _fmt(row["D_KY/tau"] * scale),
                "m_d": "none" if row["minimal_m"] is None else row["minimal_m"]}
+        used = res.options  # the cross-validated settings of the m_d models
+        out["m_d models"] = (f"k {_fmt(used['per_parameter'])} (2m+1), "
+                             f"ridge {used['ridge']:g}")
         if select_spectrum:
             out["spectrum model"] = (f"step {sel.step}, m {sel.m}, k {sel.options.n_neighbors}"
                                      f", ridge {sel.options.ridge:g}")

@@ -422,7 +422,9 @@ def write_demo_report(demo, path):
            f"{html.escape(demo.exact_note)}; <em>this model</em>: {html.escape(which)}. "
            "'&gt;=' marks a lower bound (the spectrum was "
            "too short to close the Kaplan-Yorke sum).</p>"), demo.comparison,
-          "<p>Model details (delay estimate, minimal faithful window length m_d):</p>",
+          ("<p>Model details (delay estimate, minimal faithful window length m_d, and the "
+           "neighbours and ridge of the m_d models, chosen by time-series cross-validation "
+           "of forecasts):</p>"),
           demo.table]),
         ("Delay estimates per m (the paper's second table)",
          [("<p>Dip centre +- error in samples (1 sample = 1 us), and the strongest "
