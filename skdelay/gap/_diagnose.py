@@ -170,11 +170,12 @@ def _max_z(evaluation):
 REPLICATES = 2
 
 
-def _fresh_gap(problem, seed):
-    """The record's gap against a fresh ensemble (a joblib task); NaN when it fails."""
+def _fresh_gap(problem, seed, chain=()):
+    """The record's gap, with ``chain`` in place, against a fresh ensemble (a joblib task);
+    NaN when it fails."""
     with threadpool_limits(limits=1, user_api="blas"):
         try:
-            return float(problem.reseeded(seed).evaluate([], "full").gap)
+            return float(problem.reseeded(seed).evaluate(list(chain), "full").gap)
         except CandidateFailed:
             return np.nan
 
@@ -859,7 +860,7 @@ def cross_validate(effects, parts, parallel, chain=()):
         # a simulation effect's runs are a new draw of the simulator, so its held-out gap is
         # compared with the gap that a new draw alone leaves (the median of the half's own
         # ensemble and REPLICATES fresh ones), not with the one draw the half was cut with
-        fresh = parallel(delayed(_redrawn_gap)(parts[folds[f][1]], score_chain[f], k)
+        fresh = parallel(delayed(_fresh_gap)(parts[folds[f][1]], k, score_chain[f])
                          for f in live for k in range(1, REPLICATES + 1))
         for i, f in enumerate(live):
             draws = [before[f], *fresh[i * REPLICATES:(i + 1) * REPLICATES]]
@@ -902,15 +903,6 @@ def cross_validate(effects, parts, parallel, chain=()):
             continue  # no fold could test it: the candidate stays uncross-validated
         out[name] = (np.nan if failed else after, tuple(params), b, n)
     return (float(sum(before.values())), out, float(sum(null.values())))
-
-
-def _redrawn_gap(part, chain, seed):
-    """A half's gap, with ``chain`` in place, against a fresh ensemble (a joblib task)."""
-    with threadpool_limits(limits=1, user_api="blas"):
-        try:
-            return float(part.reseeded(seed).evaluate(chain, "full").gap)
-        except CandidateFailed:
-            return np.nan
 
 
 def _drift_untestable(effect, quiet, fit, score):
