@@ -15,6 +15,12 @@ the same records and counts how often a line is found within two bins of it (pow
 Run (2 cores, about 15 minutes)::
 
     python benchmarks/line_false_alarms.py --n 6000 --reps 12
+
+``--cases`` picks others: Ikeda at step 0.25, the electro-optic oscillator at step 0.5 and
+the CO2 laser at delays 150 and 50 (whose runs differ in coherent features, so the line
+tests draw more calibration runs there), for example::
+
+    python benchmarks/line_false_alarms.py --n 6000 --reps 12 --cases "co2_laser tau 150" "co2_laser tau 50"
 """
 
 from __future__ import annotations
@@ -27,12 +33,20 @@ import warnings
 from joblib import Parallel, delayed
 
 from skdelay.gap import diagnose_gap, get_effect
-from skdelay.systems import ElectroOpticOscillator, Ikeda, MackeyGlass
+from skdelay.systems import CO2LaserFeedback, ElectroOpticOscillator, Ikeda, MackeyGlass
 
-CASES = {"mackey_glass dt 1": (MackeyGlass, 1.0),
-         "mackey_glass dt 0.5": (MackeyGlass, 0.5),
-         "ikeda dt 0.5": (Ikeda, 0.5),
-         "electro_optic dt 0.25": (ElectroOpticOscillator, 0.25)}
+CASES = {"mackey_glass dt 1": (MackeyGlass, {}, 1.0),
+         "mackey_glass dt 0.5": (MackeyGlass, {}, 0.5),
+         "ikeda dt 0.5": (Ikeda, {}, 0.5),
+         "ikeda dt 0.25": (Ikeda, {}, 0.25),
+         "electro_optic dt 0.25": (ElectroOpticOscillator, {}, 0.25),
+         "electro_optic dt 0.5": (ElectroOpticOscillator, {}, 0.5),
+         # the laser's runs differ in coherent features (its delay-loop mode, near-periodic
+         # records): the case the line tests' calibration runs are drawn for
+         "co2_laser tau 150": (CO2LaserFeedback, {"tau": 150.0}, 1.0),
+         "co2_laser tau 50": (CO2LaserFeedback, {"tau": 50.0}, 1.0)}
+DEFAULT_CASES = ["mackey_glass dt 1", "mackey_glass dt 0.5", "ikeda dt 0.5",
+                 "electro_optic dt 0.25"]
 
 
 def _lines(real, system, dt, seed):
@@ -52,8 +66,8 @@ def _near_hum(rep, freq, bin_width):
 
 def one(label, n, j):
     warnings.simplefilter("ignore")
-    cls, dt = CASES[label]
-    system = cls()
+    cls, kwargs, dt = CASES[label]
+    system = cls(**kwargs)
     seed = 7_800_000 + 101 * j
     real = system.simulate(n, sample_dt=dt, random_state=seed)
     false, _ = _lines(real, system, dt, seed)
@@ -75,16 +89,19 @@ def main():
     ap.add_argument("--n", type=int, default=6000)
     ap.add_argument("--reps", type=int, default=12)
     ap.add_argument("--n-jobs", type=int, default=2)
+    ap.add_argument("--cases", nargs="+", choices=sorted(CASES), default=DEFAULT_CASES,
+                    metavar="CASE", help=f"system and step, from {sorted(CASES)}")
     args = ap.parse_args()
     t0 = time.perf_counter()
+    cases = list(args.cases)
     rows = Parallel(n_jobs=args.n_jobs)(delayed(one)(c, args.n, j)
-                                        for c in CASES for j in range(args.reps))
+                                        for c in cases for j in range(args.reps))
     print(f"# n = {args.n}, {args.reps} records per case; hums 0.02-0.06 std, 3 cycles per "
           "record to 0.9 Nyquist; LINE_ALPHA = 0.01 family-wise per record")
     print("| case | records with a false line (no effect) | false lines | hum found "
           "(within two bins) |")
     print("|---|---|---|---|")
-    for c in CASES:
+    for c in cases:
         r = [x for x in rows if x["case"] == c]
         print(f"| {c} | {sum(x['false'] > 0 for x in r)}/{len(r)} | "
               f"{sum(x['false'] for x in r)} | {sum(x['hum_found'] for x in r)}/{len(r)} |")
