@@ -17,10 +17,10 @@ Run (2 cores, about 15 minutes)::
     python benchmarks/line_false_alarms.py --n 6000 --reps 12
 
 ``--cases`` picks others: Ikeda at step 0.25, the electro-optic oscillator at step 0.5 and
-the CO2 laser at delays 150 and 50 (whose runs differ in coherent features, so the line
-tests draw more calibration runs there), for example::
+the CO2 laser at delay 150 (whose runs differ in coherent features, so the line tests draw
+more calibration runs there), for example::
 
-    python benchmarks/line_false_alarms.py --n 6000 --reps 12 --cases "co2_laser tau 150" "co2_laser tau 50"
+    python benchmarks/line_false_alarms.py --n 6000 --reps 12 --cases "co2_laser tau 150 dt 1"
 """
 
 from __future__ import annotations
@@ -32,19 +32,13 @@ import warnings
 
 from joblib import Parallel, delayed
 
-from skdelay.gap import diagnose_gap, get_effect
-from skdelay.systems import CO2LaserFeedback, ElectroOpticOscillator, Ikeda, MackeyGlass
+# the systems and steps of the range tests' benchmark, the CO2 laser among them: its runs
+# differ in coherent features (its delay-loop mode, near-periodic records), the case the
+# line tests' calibration runs are drawn for
+from range_false_alarms import CASES
 
-CASES = {"mackey_glass dt 1": (MackeyGlass, {}, 1.0),
-         "mackey_glass dt 0.5": (MackeyGlass, {}, 0.5),
-         "ikeda dt 0.5": (Ikeda, {}, 0.5),
-         "ikeda dt 0.25": (Ikeda, {}, 0.25),
-         "electro_optic dt 0.25": (ElectroOpticOscillator, {}, 0.25),
-         "electro_optic dt 0.5": (ElectroOpticOscillator, {}, 0.5),
-         # the laser's runs differ in coherent features (its delay-loop mode, near-periodic
-         # records): the case the line tests' calibration runs are drawn for
-         "co2_laser tau 150": (CO2LaserFeedback, {"tau": 150.0}, 1.0),
-         "co2_laser tau 50": (CO2LaserFeedback, {"tau": 50.0}, 1.0)}
+from skdelay.gap import diagnose_gap, get_effect
+
 DEFAULT_CASES = ["mackey_glass dt 1", "mackey_glass dt 0.5", "ikeda dt 0.5",
                  "electro_optic dt 0.25"]
 
