@@ -17,8 +17,8 @@ Run (2 cores, about 15 minutes)::
     python benchmarks/line_false_alarms.py --n 6000 --reps 12
 
 ``--cases`` picks others: Ikeda at step 0.25, the electro-optic oscillator at step 0.5 and
-the CO2 laser at delay 150 (whose runs differ in coherent features, so the line tests draw
-more calibration runs there), for example::
+the CO2 laser at delay 150 (whose runs differ in coherent features: its delay-loop mode, its
+near-periodic records), for example::
 
     python benchmarks/line_false_alarms.py --n 6000 --reps 12 --cases "co2_laser tau 150 dt 1"
 """
@@ -32,9 +32,8 @@ import warnings
 
 from joblib import Parallel, delayed
 
-# the systems and steps of the range tests' benchmark, the CO2 laser among them: its runs
-# differ in coherent features (its delay-loop mode, near-periodic records), the case the
-# line tests' calibration runs are drawn for
+# the systems and steps of the range tests' benchmark, the CO2 laser among them (its runs
+# differ in coherent features: its delay-loop mode, its near-periodic records)
 from range_false_alarms import CASES
 
 from skdelay.gap import diagnose_gap, get_effect

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from skdelay.gap import _lines, diagnose_gap
+from skdelay.gap import diagnose_gap
 from skdelay.gap._lines import find_lines
 from skdelay.gap._units import format_frequency, parse_sample_dt
 from skdelay.systems import MackeyGlass
@@ -107,6 +107,7 @@ def test_sub_threshold_candidates_pass_the_gates_and_keep_clear_of_the_lines():
     """Hints (starting points of a hum fit) pass both gates but not the family-wise test,
     stay more than a line's width away from every line, and are at most MAX_HINTS; a 1 %
     hum under 2 % noise is a line, not a hint."""
+    from skdelay.gap import _lines
 
     n = 8000
     sims = [MG.simulate(n, random_state=s) for s in (531, 532, 533, 534)]
@@ -340,43 +341,3 @@ def test_the_low_band_keeps_its_false_line_rate_on_clean_records():
             lines = line_scan(system.simulate(n, sample_dt=dt, random_state=seed), sims, dt)[0]
             hits += any(line.frequency * n * dt < 36 for line in lines)
     assert hits <= 2
-
-
-def _white(seed, n=6000):
-    return np.random.default_rng(seed).standard_normal(n)
-
-
-def _sine(freq, amp, n=6000, phase=0.3):
-    return amp * np.sin(2 * np.pi * freq * np.arange(n) + phase)
-
-
-def test_a_runs_own_line_calibrates_the_tests_only_near_its_frequency():
-    """One run with a line of its own (the laser's delay-loop mode) says how far the
-    simulator can stick out near that frequency, not everywhere: a hum two octaves away is
-    still found, a line where the run has one is not."""
-    runs = [_white(s) for s in range(1, 7)]
-    runs[0] = runs[0] + _sine(0.45, 0.5)
-    # a whole-band calibration (run 0's z ~ 9 everywhere) missed this hum (z 5)
-    lines = _lines.line_scan(_white(10) + _sine(0.08, 0.2), runs, 1.0)[0]
-    assert [round(line.frequency, 3) for line in lines] == [0.08]
-    # without the runs' calibration a record with the same line reads z 4.7 and 6.6: found
-    for amp in (0.3, 0.5):
-        assert _lines.line_scan(_white(11) + _sine(0.45, amp), runs, 1.0)[0] == []
-    for seed in (12, 13):
-        assert _lines.line_scan(_white(seed), runs, 1.0)[0] == []
-
-
-def test_runs_that_pass_the_line_tests_alone_draw_more_calibration_runs():
-    calls = []
-
-    def more(k):
-        calls.append(k)
-        return [_white(100 + s) for s in range(k)]
-
-    plain = [_white(s) for s in range(1, 7)]
-    _lines.line_scan(_white(10) + _sine(0.08, 0.2), plain, 1.0, more_runs=more)
-    assert calls == []
-    outrun = [plain[0] + _sine(0.45, 0.5)] + plain[1:]
-    lines = _lines.line_scan(_white(10) + _sine(0.08, 0.2), outrun, 1.0, more_runs=more)[0]
-    assert calls == [_lines.CALIBRATION_RUNS - 6]
-    assert [round(line.frequency, 3) for line in lines] == [0.08]
