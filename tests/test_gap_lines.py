@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from skdelay.gap import diagnose_gap
+from skdelay.gap import _lines, diagnose_gap
 from skdelay.gap._lines import find_lines
 from skdelay.gap._units import format_frequency, parse_sample_dt
 from skdelay.systems import MackeyGlass
@@ -107,7 +107,6 @@ def test_sub_threshold_candidates_pass_the_gates_and_keep_clear_of_the_lines():
     """Hints (starting points of a hum fit) pass both gates but not the family-wise test,
     stay more than a line's width away from every line, and are at most MAX_HINTS; a 1 %
     hum under 2 % noise is a line, not a hint."""
-    from skdelay.gap import _lines
 
     n = 8000
     sims = [MG.simulate(n, random_state=s) for s in (531, 532, 533, 534)]
@@ -341,3 +340,70 @@ def test_the_low_band_keeps_its_false_line_rate_on_clean_records():
             lines = line_scan(system.simulate(n, sample_dt=dt, random_state=seed), sims, dt)[0]
             hits += any(line.frequency * n * dt < 36 for line in lines)
     assert hits <= 2
+
+
+def _white(seed, n=6000):
+    return np.random.default_rng(seed).standard_normal(n)
+
+
+def _sine(freq, amp, n=6000, phase=0.3):
+    return amp * np.sin(2 * np.pi * freq * np.arange(n) + phase)
+
+
+def test_a_runs_own_line_calibrates_the_tests_only_near_its_frequency():
+    """One run with a line of its own (the laser's delay-loop mode) says how far the
+    simulator can stick out near that frequency, not everywhere: a hum two octaves away is
+    still found, a line where the run has one is not."""
+    runs = [_white(s) for s in range(1, 7)]
+    runs[0] = runs[0] + _sine(0.45, 0.5)
+    # a whole-band calibration (run 0's z ~ 9 everywhere) missed this hum (z 5)
+    lines = _lines.line_scan(_white(10) + _sine(0.08, 0.2), runs, 1.0)[0]
+    assert [round(line.frequency, 3) for line in lines] == [0.08]
+    # without the runs' calibration a record with the same line reads z 4.7 and 6.6: found
+    for amp in (0.3, 0.5):
+        assert _lines.line_scan(_white(11) + _sine(0.45, amp), runs, 1.0)[0] == []
+    for seed in (12, 13):
+        assert _lines.line_scan(_white(seed), runs, 1.0)[0] == []
+
+
+def test_more_calibration_runs_are_drawn_only_when_the_runs_null_can_decide():
+    """The runs' null only matters where some bin of the record passes the Bonferroni bounds,
+    or where some run alone passes them: only then are runs drawn up to CALIBRATION_RUNS,
+    and the prediction bound of their extremes judges the record."""
+    calls = []
+
+    def more(k):
+        calls.append(k)
+        return [_white(100 + s) for s in range(k)]
+
+    plain = [_white(s) for s in range(1, 7)]
+    assert _lines.line_scan(_white(10), plain, 1.0, more_runs=more)[0] == []
+    assert calls == []
+    lines = _lines.line_scan(_white(10) + _sine(0.08, 0.2), plain, 1.0, more_runs=more)[0]
+    assert calls == [_lines.CALIBRATION_RUNS - 6]
+    assert [round(line.frequency, 3) for line in lines] == [0.08]
+    outrun = [plain[0] + _sine(0.45, 0.5)] + plain[1:]
+    assert _lines.line_scan(_white(10), outrun, 1.0, more_runs=more)[0] == []
+    assert calls == [_lines.CALIBRATION_RUNS - 6] * 2
+
+
+def test_peaks_of_the_dynamics_moved_by_a_timebase_are_not_lines():
+    """A clock 6 % off moves every sharp peak of Mackey-Glass' spectrum by 6 %: the record
+    has peaks where the runs have none and lacks theirs next to them.  Judged bin by bin,
+    each moved peak passed the line tests (2 and 5 lines on these seeds before); read as
+    moves by one common factor they are not lines, and a hum on top still is."""
+    from skdelay.gap import get_effect
+    from skdelay.gap._lines import line_scan
+
+    n = 6000
+    sims = [MG.simulate(n, random_state=5600 + k) for k in range(30)]
+
+    def more(k):
+        return sims[6:6 + k]
+
+    for seed in (31, 32):
+        x = MG.simulate(int(n * 1.1), random_state=seed)
+        real = get_effect("timebase_mismatch").apply(x, {"factor": 1.06})[:n]
+        assert line_scan(real, sims[:6], 1.0, more_runs=more)[0] == []
+        lines = line_scan(hum(real, 0.1, 0.3), sims[:6], 1.0, more_runs=more)[0]
+        assert [round(line.frequency, 3) for line in lines] == [0.1]

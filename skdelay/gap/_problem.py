@@ -24,7 +24,7 @@ from ._effects import (
     call_hook,
 )
 from ._indicators import ensemble_stats, indicator_gap, make_indicators, profiles, zscores
-from ._lines import line_scan, spectrum_view
+from ._lines import CALIBRATION_RUNS, line_scan, spectrum_view
 from ._signature import zscore
 from ._where import DIP_DEPTH_RATIO, DIP_Z, dip_window
 
@@ -187,8 +187,8 @@ class GapProblem:
         # lines anywhere from a few cycles per record to Nyquist (a 50 Hz hum at 1 MHz)
         # and sub-threshold candidates, where a hum fit may also start (_lines.line_scan)
         if lines is None:
-            self.lines, self.line_hints, self.line_start = line_scan(real, runs,
-                                                                     self.sample_dt)
+            self.lines, self.line_hints, self.line_start = line_scan(
+                real, runs, self.sample_dt, more_runs=self._line_runs(n_jobs))
         else:
             self.lines, self.line_hints = list(lines), list(line_hints or [])
             self.line_start = line_start
@@ -202,6 +202,19 @@ class GapProblem:
         self._scan_dips(scan_dips)
         self.before = self._compare({k: f for k, (f, _) in self.base_features.items()}, runs)
         self.null_gaps = self._null_gaps()
+
+    def _line_runs(self, n_jobs):
+        """``more_runs`` of :func:`~skdelay.gap._lines.line_scan`: further clean runs that
+        only calibrate the line tests, seeded from the first run's seed (the problem's
+        random stream, and with it every other draw, stays as it is)."""
+        seeds = np.random.RandomState(int(self.sim_seeds[0])).randint(
+            0, 2**31 - 1, size=CALIBRATION_RUNS)
+
+        def more(k):
+            return Parallel(n_jobs=n_jobs)(
+                delayed(run_simulator)(self.simulator, self.n_samples, self.sample_dt, s, {})
+                for s in seeds[:k])
+        return more
 
     def _set_real(self, real):
         """The record's z-scored series and its indicator profiles (on the indicators' bins)."""
