@@ -8,7 +8,7 @@ and, for a ``line_scan`` that takes ``more_runs``, further runs from the first r
 (as ``GapProblem`` does).  A record "has a false line" when any line is found in the
 no-effect record; a hum is "found" when a line lies within two bins of it.  The baseline's
 ``_lines.py`` is read from git (``git show REV:skdelay/gap/_lines.py``), so no second
-checkout is needed.  This is cheaper than ``line_false_alarms.py`` (no diagnosis, about
+checkout is needed; both scans are loaded from their files (the scan is private).  This is cheaper than ``line_false_alarms.py`` (no diagnosis, about
 90 s for 320 records on 2 cores) and isolates the scan's calibration.
 
 Run (2 cores)::
@@ -33,7 +33,6 @@ from joblib import Parallel, delayed
 from range_false_alarms import CASES as RANGE_CASES
 
 from skdelay.gap import get_effect
-from skdelay.gap._problem import run_simulator
 from skdelay.systems import CO2LaserFeedback
 
 # the range tests' systems and steps (one home for the case list), and the laser at delay 50
@@ -51,20 +50,21 @@ def _module(path, name):
     return sys.modules[name]
 
 
-def one(label, n, j, base, baseline_path):
+def one(label, n, j, base, baseline_path, head_path):
     warnings.simplefilter("ignore")
     cls, kw, dt = CASES[label]
     system = cls(**kw)
     seed = base + 101 * j
     real = system.simulate(n, sample_dt=dt, random_state=seed)
     seeds = np.random.RandomState(seed % 9973).randint(0, 2**31 - 1, size=6)
-    runs = [run_simulator(system, n, dt, int(s), {}) for s in seeds]
+    runs = [np.asarray(system.simulate(n, sample_dt=dt, random_state=int(s))) for s in seeds]
     extra_seeds = np.random.RandomState(int(seeds[0])).randint(0, 2**31 - 1, size=EXTRA_RUNS)
     cache = {}
 
     def more(k):
         if k not in cache:
-            cache[k] = [run_simulator(system, n, dt, int(s), {}) for s in extra_seeds[:k]]
+            cache[k] = [np.asarray(system.simulate(n, sample_dt=dt, random_state=int(s)))
+                        for s in extra_seeds[:k]]
         return cache[k]
 
     lo, hi = 3.0 / (n * dt), 0.45 / dt
@@ -75,9 +75,8 @@ def one(label, n, j, base, baseline_path):
         random_state=seed + 7)
     out = {"case": label, "j": j, "cycles": freq * n * dt, "amp": amp}
     bin_width = 1.0 / (n * dt)
-    import skdelay.gap._lines as head
     for name, mod in (("baseline", _module(baseline_path, "skdelay.gap._lines_baseline")),
-                      ("head", head)):
+                      ("head", _module(head_path, "skdelay.gap._lines_head"))):
         extra = {"more_runs": more} if "more_runs" in mod.line_scan.__code__.co_varnames else {}
         false = mod.line_scan(real, runs, dt, **extra)[0]
         found = mod.line_scan(hummed, runs, dt, **extra)[0]
@@ -104,7 +103,8 @@ def main():
     with tempfile.NamedTemporaryFile("w", suffix="_lines.py", delete=False) as fh:
         fh.write(text)
     t0 = time.time()
-    rows = Parallel(n_jobs=args.n_jobs)(delayed(one)(c, args.n, j, args.seed, fh.name)
+    head = os.path.join(root, "skdelay", "gap", "_lines.py")
+    rows = Parallel(n_jobs=args.n_jobs)(delayed(one)(c, args.n, j, args.seed, fh.name, head)
                                         for c in cases for j in range(args.reps))
     os.unlink(fh.name)
     print(f"line scan, baseline {args.baseline} -> this checkout: n {args.n}, "
