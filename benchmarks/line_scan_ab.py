@@ -8,8 +8,9 @@ and, for a ``line_scan`` that takes ``more_runs``, further runs from the first r
 (as ``GapProblem`` does).  A record "has a false line" when any line is found in the
 no-effect record; a hum is "found" when a line lies within two bins of it.  The baseline's
 ``_lines.py`` is read from git (``git show REV:skdelay/gap/_lines.py``), so no second
-checkout is needed; both scans are loaded from their files (the scan is private).  This is cheaper than ``line_false_alarms.py`` (no diagnosis, about
-90 s for 320 records on 2 cores) and isolates the scan's calibration.
+checkout is needed; both scans are loaded from their files (the scan is private).  This
+is cheaper than ``line_false_alarms.py`` (no diagnosis, about 90 s for 320 records on 2
+cores) and isolates the scan's calibration.
 
 Run (2 cores)::
 
@@ -113,7 +114,8 @@ def main():
     tot = np.zeros(4, dtype=int)
     for c in cases:
         r = [x for x in rows if x["case"] == c]
-        v = np.array([sum(bool(x["baseline_false"]) for x in r), sum(bool(x["head_false"]) for x in r),
+        v = np.array([sum(bool(x["baseline_false"]) for x in r),
+                      sum(bool(x["head_false"]) for x in r),
                       sum(x["baseline_hum"] for x in r), sum(x["head_hum"] for x in r)])
         tot += v
         print(f"{c:24s} {len(r):7d} {v[0]:6d} -> {v[1]:3d} {v[2]:6d} -> {v[3]:3d}")

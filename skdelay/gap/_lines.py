@@ -428,14 +428,14 @@ def _low_band(scan, real_raw, raws, p_f, cal, null=True):
 #: The simulator's own coherent peaks calibrate the line tests only within this factor of
 #: their frequency (an octave either side).  Each run is scored against the others; its
 #: largest z among coherent bins (and its smallest combined p) is how far the simulator
-#: alone can stick out (:data:`NULL_ALPHA`), but only near where it does so: the dynamics' sharp features (the
-#: laser's delay-loop mode, a chaotic peak) wander by a few per cent between runs, not by
-#: octaves.  Taken over the whole band, one run's loop mode hid every line elsewhere:
-#: CO2 laser at delay 150 (6000 samples, held-out-step benchmark seed 22.0e6) with a
-#: 0.031-std hum at 8.2 cycles per record (line power 43 times its continuum), where one
-#: of six runs had its loop mode at 35 cycles per record (z 6.3, harmonic-F p 1e-6, combined
-#: p 8e-15); the hum reached z 3.6 and p_F 8e-5 (combined 2e-7 against a family bound of
-#: 3e-6) and was reported as "no gap".
+#: alone can stick out (:data:`NULL_ALPHA`), but only near where it does so: the
+#: dynamics' sharp features (the laser's delay-loop mode, a chaotic peak) wander by a few
+#: per cent between runs, not by octaves.  Taken over the whole band, one run's loop mode
+#: hid every line elsewhere: CO2 laser at delay 150 (6000 samples, held-out-step benchmark
+#: seed 22.0e6) with a 0.031-std hum at 8.2 cycles per record (line power 43 times its
+#: continuum), where one of six runs had its loop mode at 35 cycles per record (z 6.3,
+#: harmonic-F p 1e-6, combined p 8e-15); the hum reached z 3.6 and p_F 8e-5 (combined 2e-7
+#: against a family bound of 3e-6) and was reported as "no gap".
 NULL_SPAN = 2.0
 #: The test's bound near a bin is not the runs' largest extreme there but a one-sided
 #: prediction bound of their extremes (Student t on the runs' local extremes, log10 p for
@@ -444,11 +444,11 @@ NULL_SPAN = 2.0
 #: per span, and the laser's runs reach combined p ~1e-7 near most of their peaks.  On the
 #: held-out-step benchmark (seed 22.2e6) an ADC-count laser control beat the largest of 24
 #: runs' extremes near 471 cycles per record (combined p 2.4e-7 against 2.7e-7) and a
-#: delay mismatch was named.  Measured on the scan alone (no-effect and weak-hum records,
-#: 6000 samples, scratch A/B against the whole-band null of six runs; 800 records over
-#: eight systems and steps, seeds 9.1e6, 9.3e6 and 9.5e6 + 101 j): records with a false
-#: line 39 -> 17, of them the laser's 32 -> 16 of 320; hums of 0.02-0.06 std found 279 ->
-#: 268 (the laser's 152 -> 150; the electro-optic oscillator's and Mackey-Glass' lose 9).
+#: delay mismatch was named.  Measured on the scan alone (``benchmarks/line_scan_ab.py``
+#: against the whole-band null of six runs: no-effect and weak-hum records, 6000 samples,
+#: eight systems and steps; 1040 records, seeds 9.1e6, 9.3e6, 9.5e6 and 9.7e6 + 101 j):
+#: records with a false line 50 -> 18, of them the laser's 42 -> 16 of 580; hums of
+#: 0.02-0.06 std found 354 -> 341.
 NULL_ALPHA = LINE_ALPHA
 
 
