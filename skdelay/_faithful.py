@@ -500,9 +500,42 @@ def _taus_for(s, m_values, tau, tau_grid, seed, n_jobs):
     return dict.fromkeys(m_values, check_positive_int(tau, name="tau"))
 
 
+def _ky_closed(spec):
+    """Whether a spectrum's Kaplan-Yorke dimension is a value, not only a lower bound (every
+    computed exponent summed still positive: the dimension is at least their number)."""
+    return bool(spec.extra.get("ky_closed", spec.kaplan_yorke_dimension < len(spec) - 1e-9))
+
+
+def _dky_change(spec, ref):
+    """Smallest relative difference of two Kaplan-Yorke dimensions that their values allow.
+
+    A dimension that is only a lower bound ``L`` (:func:`_ky_closed`) stands for any value
+    from ``L`` up; two bounds are always consistent, a bound and a value differ by at least
+    ``max(L - value, 0)``.  Relative to the partner's value (at least 1), as for two values.
+    """
+    d, d_ref = float(spec.kaplan_yorke_dimension), float(ref.kaplan_yorke_dimension)
+    closed, ref_closed = _ky_closed(spec), _ky_closed(ref)
+    if closed and ref_closed:
+        diff = abs(d - d_ref)
+    elif closed:
+        diff = max(d_ref - d, 0.0)
+    elif ref_closed:
+        diff = max(d - d_ref, 0.0)
+    else:
+        diff = 0.0
+    return diff / max(d_ref, 1.0)
+
+
 def _lyapunov_verdicts(table, spectra, m_max):
     """Convergence in m: every model against ``m_max``, and ``m_max`` against ``m_max - 1``
-    (NaN and a pass when ``m_max`` is the only model: nothing to compare with)."""
+    (NaN and a pass when ``m_max`` is the only model: nothing to compare with).
+
+    A Kaplan-Yorke dimension that is only a lower bound (the computed exponents' sum never
+    turned negative) is compared as a bound (:func:`_dky_change`): on the laser at 400 us
+    the models m = 2..4 gave "30" from 30 exponents and m = 5, with doubled exponents, 62,
+    and the value-to-value comparison failed m = 4 (0.52 > 0.25) and m = 5 (1.08) although
+    their lambda_1 agreed to 12 %.
+    """
     change, ok = {}, {}
     for m, spec in spectra.items():
         partner = m_max if m != m_max else m_max - 1
@@ -510,15 +543,14 @@ def _lyapunov_verdicts(table, spectra, m_max):
             change[m], ok[m] = np.nan, True
             continue
         ref = spectra[partner]
-        lam_ref, d_ref = float(ref.exponents[0]), float(ref.kaplan_yorke_dimension)
-        lam, d_ky = float(spec.exponents[0]), float(spec.kaplan_yorke_dimension)
-        rel = max(abs(lam - lam_ref) / max(abs(lam_ref), 1e-300),
-                  abs(d_ky - d_ref) / max(d_ref, 1.0))
+        lam_ref = float(ref.exponents[0])
+        lam = float(spec.exponents[0])
+        d_rel = _dky_change(spec, ref)
+        rel = max(abs(lam - lam_ref) / max(abs(lam_ref), 1e-300), d_rel)
         se = float(np.hypot(spec.spread[0], ref.spread[0]))
         change[m] = rel
         ok[m] = bool(rel <= LYAPUNOV_TOLERANCE
-                     or (abs(lam - lam_ref) <= 3 * se
-                         and abs(d_ky - d_ref) / max(d_ref, 1.0) <= LYAPUNOV_TOLERANCE))
+                     or (abs(lam - lam_ref) <= 3 * se and d_rel <= LYAPUNOV_TOLERANCE))
     table["lyapunov"] = pd.Series(change)
     table["lyapunov_band"] = LYAPUNOV_TOLERANCE
     table["lyapunov_pass"] = pd.Series(ok)

@@ -8,6 +8,7 @@ import pytest
 from skdelay._faithful import (
     CRITERIA,
     FaithfulnessResult,
+    _lyapunov_verdicts,
     _median_interval,
     _minimal_m,
     _runs_disagree,
@@ -381,3 +382,40 @@ def test_the_verdict_does_not_hang_on_the_runs_starting_histories():
         print(res.table["status"].to_string())
         found[rs] = res.m_d
     assert found == {2: 2, 3: 2}
+
+
+def _spectrum(exponents, closed):
+    from skdelay.dynamics import LyapunovSpectrum
+
+    lam = np.asarray(exponents, dtype=float)
+    return LyapunovSpectrum(lam, np.full(lam.size, 1e-5), extra={"ky_closed": closed})
+
+
+def test_a_kaplan_yorke_dimension_that_is_only_a_bound_is_compared_as_a_bound():
+    import pandas as pd
+
+    # 30 exponents whose sum is still positive: D_KY is "at least 30"
+    bound = _spectrum(np.linspace(0.0019, 1e-5, 30), closed=False)
+    assert bound.kaplan_yorke_dimension == pytest.approx(30.0)
+    # 64 exponents, lambda_1 within 12 %, the sum turning negative past 30
+    value = _spectrum(np.linspace(0.0017, -0.0035, 64), closed=True)
+    assert 30 < value.kaplan_yorke_dimension < 64
+    small = _spectrum(np.linspace(0.0017, -0.01, 30), closed=True)  # D_KY about 9
+    assert small.kaplan_yorke_dimension < 15
+
+    def verdicts(spectra):
+        table = pd.DataFrame(index=pd.Index(sorted(spectra), name="m"))
+        _lyapunov_verdicts(table, spectra, max(spectra))
+        return table
+
+    # a bound of 30 below a value of 40 agrees with it (lambda_1 decides): both pass; compared
+    # as values the bound would be 0.2-0.3 off
+    table = verdicts({4: bound, 5: value})
+    assert table["lyapunov_pass"].all()
+    assert table["lyapunov"].max() == pytest.approx(0.0019 / 0.0017 - 1, rel=1e-6)
+    # a bound of 30 above a value of 9 cannot agree with it
+    table = verdicts({4: bound, 5: small})
+    assert not table.loc[4, "lyapunov_pass"] and not table.loc[5, "lyapunov_pass"]
+    # two values are compared as values
+    table = verdicts({4: value, 5: small})
+    assert not table["lyapunov_pass"].any()
