@@ -5,7 +5,14 @@ import numpy as np
 import pytest
 
 from skdelay.gap import diagnose_gap, get_effect
-from skdelay.gap._range import RANGE_ALPHA, excursions, jump_test, jumps, range_test
+from skdelay.gap._range import (
+    RANGE_ALPHA,
+    could_decide,
+    excursions,
+    jump_test,
+    jumps,
+    range_test,
+)
 from skdelay.systems import Ikeda, MackeyGlass
 
 
@@ -90,12 +97,15 @@ def test_spikes_inside_the_range_are_found_by_their_jumps():
     """The record of the test above with spikes of 3.5 std at 0.3 %: 5 excursions beyond the
     runs' range (p = 1.3e-3 > RANGE_ALPHA) and a gap of 5.0 under its threshold of 6.3 read
     "no gap" before the jump test; 16 samples jump off both neighbours farther than any run
-    does (none of the runs against the others)."""
+    does (none of the runs against the others).  Since the range tests are calibrated on
+    the line scan's calibration runs where six runs cannot decide, the 5 excursions count
+    too (24 runs: p = 2e-7)."""
     rep = _spiked_ikeda(rate=0.003, size=3.5)
     s = rep.significance
-    assert s["gap_before"] < s["threshold"] and s["beyond_range_p"] > RANGE_ALPHA
+    assert s["gap_before"] < s["threshold"]
     assert s["jumps_p"] < RANGE_ALPHA and s["jumps"] >= 10 and s["significant"]
-    assert "jumps off both neighbours" in rep.headline()
+    assert "leaves the simulator runs' range" in rep.headline()
+    assert "24 clean simulator runs among themselves" in rep.headline()
     assert rep.best_effect == "outliers" and rep.explained == "fully"
     fit = rep.effects.set_index("effect").loc["outliers", "params"]
     assert 0.5 * 0.003 < fit["rate"] < 1.5 * 0.003 and 2.5 < fit["size"] < 5.0
@@ -209,3 +219,50 @@ def test_a_fit_whose_runs_make_the_excursions_explains_a_record_with_no_other_ev
     new, _, led = _spike_evidence_first(Problem(), {**sig, "spikes_only": False}, table,
                                         ["a", "b"], by_name)
     assert not led and list(new["effect"]) == ["lowpass", "outliers"]
+
+
+def test_more_runs_are_asked_for_only_where_they_could_make_the_excursions_significant():
+    # six runs without an excursion bound the rate at 0.5 per record: three excursions give
+    # p = 0.014 however far out they lie; 24 such runs would give 3e-4
+    three = {"count": 3, "null_counts": [0] * 6, "off": False}
+    assert could_decide(three, 24)
+    assert not could_decide(three, 6)  # no more runs to draw
+    assert not could_decide({**three, "count": 1}, 24)  # P(>= 1) = 0.12 even with 24 runs
+    assert not could_decide({**three, "null_counts": [1, 0, 2, 0, 1, 0]}, 24)  # the runs' rate
+    assert not could_decide({**three, "off": True}, 24)  # decided already
+    assert not could_decide({**three, "count": 0}, 24)
+
+
+def test_a_few_large_spikes_are_judged_against_the_calibration_runs():
+    """Ikeda (step 0.5, 6000 samples) with three spikes of 3-9 std: each leaves the runs'
+    range and jump range, but six clean runs only bound the runs' own excursion rate at 0.5
+    per record (p = 0.046 and 0.014), the gap (1.5) lies far under its threshold (8.9), and
+    the record read "no gap".  The 18 calibration runs that the line scan draws
+    (``GapProblem.calibration_runs``) decide it (p = 3e-4).  The held-out benchmark's Ikeda
+    record at step 0.25 (seed 22.3e6, six spikes) read "no gap" the same way."""
+    ik = Ikeda()
+    x = ik.simulate(6000, sample_dt=0.5, random_state=951)
+    real = get_effect("outliers").apply(x, {"rate": 0.0005, "size": 6.0}, sample_dt=0.5,
+                                        random_state=957)
+    rep = diagnose_gap(real, ik, sample_dt=0.5, random_state=953, n_jobs=2,
+                       effects=["outliers", "measurement_noise", "clipping"])
+    s = rep.significance
+    assert s["gap_before"] < s["threshold"] and s["beyond_range"] == s["jumps"] == 3
+    assert s["jumps_p"] < RANGE_ALPHA and s["significant"] and s["spikes_only"]
+    assert rep.best_effect == "outliers" and rep.explained == "fully"
+
+
+def test_the_calibration_runs_are_drawn_once_and_shared():
+    from skdelay.gap._lines import CALIBRATION_RUNS
+    from skdelay.gap._problem import GapProblem
+
+    ik = Ikeda()
+    real = ik.simulate(3000, sample_dt=0.5, random_state=981)
+    problem = GapProblem(real, ik, sample_dt=0.5, random_state=982, scan_dips=False)
+    first = problem.calibration_runs()
+    assert len(first) == CALIBRATION_RUNS
+    assert all(a is b for a, b in zip(first[:len(problem.base)], problem.base, strict=False))
+    again = problem.calibration_runs()
+    assert all(a is b for a, b in zip(first, again, strict=True))  # not drawn twice
+    # distinct runs: the calibration runs are not copies of the base runs
+    assert len({float(np.sum(r[:100])) for r in first}) == CALIBRATION_RUNS

@@ -23,10 +23,10 @@ from ._effects import (
 )
 from ._fit import FitResult, fit_effect, initial_params
 from ._indicators import Spectrum
-from ._lines import F_ALPHA, without_lines
+from ._lines import CALIBRATION_RUNS, F_ALPHA, without_lines
 from ._observation import Outliers
 from ._problem import GapProblem
-from ._range import jump_test, range_test
+from ._range import excursion_tests, jump_test, range_test
 from ._report import GapReport
 from ._signature import mean_std, pile_ups
 from ._units import parse_sample_dt
@@ -217,8 +217,10 @@ def significance(problem, parallel=None):
     dip_shift = dip_shift_significant(problem)
     # spikes beyond the runs' range, too few to move a histogram bin, and spikes off both
     # neighbours by more than the runs ever are (skdelay.gap._range)
-    beyond = range_test(problem.real, problem.base)
-    jumps = jump_test(problem.real, problem.base)
+    # where six runs cannot decide, or a test fires, the calibration runs judge it
+    # (skdelay.gap._range.excursion_tests)
+    beyond, jumps, n_range = excursion_tests(problem.real, problem.base,
+                                             problem.calibration_runs, CALIBRATION_RUNS)
     local = bool(max_z > Z_LOCAL or lines or beyond["off"] or jumps["off"])
     replicated = None
     by_gap = gap > threshold
@@ -234,7 +236,7 @@ def significance(problem, parallel=None):
             "threshold": threshold, "max_z": max_z, "z_local": Z_LOCAL, "lines": lines,
             "dip_shift": dip_shift, "beyond_range": beyond["count"],
             "beyond_range_p": beyond["p_value"], "jumps": jumps["count"],
-            "jumps_p": jumps["p_value"],
+            "jumps_p": jumps["p_value"], "range_runs": n_range,
             "significant": bool(other or dip_shift),
             # the dip is the only discrepancy beyond chance (see _dip_evidence_first)
             "dip_only": bool(dip_shift and not other),

@@ -205,16 +205,32 @@ class GapProblem:
 
     def _line_runs(self, n_jobs):
         """``more_runs`` of :func:`~skdelay.gap._lines.line_scan`: further clean runs that
-        only calibrate the line tests, seeded from the first run's seed (the problem's
-        random stream, and with it every other draw, stays as it is)."""
+        only calibrate the tests of narrow discrepancies (lines, excursions beyond the runs'
+        range), seeded from the first run's seed (the problem's random stream, and with it
+        every other draw, stays as it is).  Drawn once and kept: the range tests reuse the
+        runs the line scan drew (:meth:`calibration_runs`)."""
         seeds = np.random.RandomState(int(self.sim_seeds[0])).randint(
             0, 2**31 - 1, size=CALIBRATION_RUNS)
+        drawn = []
 
         def more(k):
-            return Parallel(n_jobs=n_jobs)(
-                delayed(run_simulator)(self.simulator, self.n_samples, self.sample_dt, s, {})
-                for s in seeds[:k])
+            if k > len(drawn):
+                drawn.extend(Parallel(n_jobs=n_jobs)(
+                    delayed(run_simulator)(self.simulator, self.n_samples, self.sample_dt,
+                                           s, {})
+                    for s in seeds[len(drawn):k]))
+            return drawn[:k]
+        self._more_runs = more
         return more
+
+    def calibration_runs(self):
+        """The clean runs plus the calibration runs of :meth:`_line_runs`, up to
+        :data:`~skdelay.gap._lines.CALIBRATION_RUNS` in all (the extra ones drawn on first
+        use, the same the line scan drew)."""
+        more = getattr(self, "_more_runs", None)
+        if more is None:
+            more = self._line_runs(None)
+        return list(self.base) + list(more(max(CALIBRATION_RUNS - len(self.base), 0)))
 
     def _set_real(self, real):
         """The record's z-scored series and its indicator profiles (on the indicators' bins)."""

@@ -237,15 +237,20 @@ class GapReport:
             what = "the forecast-error dip lies outside the runs' scatter"
         elif s.get("beyond_range_p", 1.0) < RANGE_ALPHA:
             what = (f"the record leaves the simulator runs' range {s['beyond_range']} times "
-                    f"(chance {s['beyond_range_p']:.1g} at the runs' own rate)")
+                    f"(chance {s['beyond_range_p']:.1g} at the rate of {self._range_runs()})")
         elif s.get("jumps_p", 1.0) < RANGE_ALPHA:
             what = (f"{s['jumps']} times a sample jumps off both neighbours farther than the simulator "
                     f"runs ever do (spikes, or turns sharper than theirs; chance "
-                    f"{s['jumps_p']:.1g} at the runs' own rate)")
+                    f"{s['jumps_p']:.1g} at the rate of {self._range_runs()})")
         else:
             return ""
         return (f", significant although the gap {self.gap_before:.3g} is within the no-gap "
                 f"threshold {s['threshold']:.3g}: {what}")
+
+    def _range_runs(self):
+        """The runs the range tests were calibrated on, in words."""
+        n = self.significance.get("range_runs")
+        return f"{n} clean simulator runs among themselves" if n else "the runs among themselves"
 
     def _joint(self):
         """Were the two effects fitted in turn, each beneath / on top of the other (so the
