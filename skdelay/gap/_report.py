@@ -247,6 +247,16 @@ class GapReport:
         return (f", significant although the gap {self.gap_before:.3g} is within the no-gap "
                 f"threshold {s['threshold']:.3g}: {what}")
 
+    def _only_excursions(self):
+        """The record's only evidence is its excursions beyond the runs' range of values or
+        of jumps: the gap within the no-gap threshold, no line, bin, or dip beyond chance."""
+        s = self.significance
+        return bool(self.gap_before <= s["threshold"] and not s.get("lines")
+                    and not s.get("max_z", 0.0) > s.get("z_local", np.inf)
+                    and not s.get("dip_shift")
+                    and (s.get("beyond_range_p", 1.0) < RANGE_ALPHA
+                         or s.get("jumps_p", 1.0) < RANGE_ALPHA))
+
     def _range_runs(self):
         """The runs the range tests were calibrated on, in words."""
         n = self.significance.get("range_runs")
@@ -373,7 +383,11 @@ class GapReport:
         if not s["significant"]:
             return (f"Real and simulated data are indistinguishable: {self._no_gap_words()}. "
                     "No effect is needed. Nothing remains to be explained.")
-        if len(self.where):
+        if self._only_excursions():
+            # the binned profiles lie within the runs' own scatter: their largest difference
+            # is not where the data differ
+            where = "Real and simulated data differ in a few isolated samples."
+        elif len(self.where):
             top = self._where_words(self.where.iloc[0])
             where = f"Real and simulated data differ most in {top}."
         else:
