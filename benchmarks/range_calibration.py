@@ -18,14 +18,13 @@ Run (2 cores, about 4 minutes)::
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import os
-import sys
 import time
 import warnings
 
 import numpy as np
 from joblib import Parallel, delayed
+from line_scan_ab import _module
 from range_false_alarms import CASES
 
 from skdelay.gap import get_effect
@@ -35,15 +34,8 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 
 
 def _range_module():
-    name = "skdelay_gap_range_bench"
-    if name not in sys.modules:
-        path = os.path.join(HERE, os.pardir, "skdelay", "gap", "_range.py")
-        spec = importlib.util.spec_from_file_location(name, path)
-        mod = importlib.util.module_from_spec(spec)
-        mod.__package__ = "skdelay.gap"
-        sys.modules[name] = mod
-        spec.loader.exec_module(mod)
-    return sys.modules[name]
+    path = os.path.join(HERE, os.pardir, "skdelay", "gap", "_range.py")
+    return _module(path, "skdelay_gap_range_bench")
 
 
 def one(label, n, j, base, rate, size):
