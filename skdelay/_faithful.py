@@ -88,10 +88,10 @@ MEDIAN_CONFIDENCE = 0.95
 #: quantile of the distances between disjoint data segments of the run's length ...
 REFERENCE_QUANTILE = 0.95
 #: ... or this multiple of their median.  With long records the sampling band shrinks
-#: below the imperfections every model has; the paper accepted cross-prediction errors up
-#: to 1.25 x the data's own for its faithful models (Buenner et al., table III: 5.9 vs 5.0
-#: and 6.1 vs 4.8 in units of 1e-2), and the same relative tolerance is used for the
-#: histogram and spectrum distances, which the paper judged by eye.
+#: below the imperfections every model has; the paper called cross-prediction errors of
+#: 1.18 and 1.27 x the data's own faithful (Buenner et al., table III, m = 5: 5.9 vs 5.0 and
+#: 6.1 vs 4.8 in units of 1e-2), and 1.25 lies between them; the same relative tolerance
+#: is used for the histogram and spectrum distances, which the paper judged by eye.
 TOLERANCE = 1.25
 #: At most this many data segments for the reference distances (6..28 pairs).
 MAX_SEGMENTS = 8
