@@ -105,8 +105,8 @@ class _Part:
 
 def test_cross_validation_pools_both_folds_unless_an_effect_is_anchored():
     """Each half fits, the other scores, and the held-out gaps are summed; an effect tied to
-    the record's start (a drift), or with a forward-only ``transfer`` of its own, is scored
-    on the forward fold alone."""
+    the record's start whose search ignores a part's anchor, or with a forward-only
+    ``transfer`` of its own, is scored on the forward fold alone."""
     from joblib import Parallel
 
     from skdelay.gap._diagnose import cross_validate
@@ -123,6 +123,41 @@ def test_cross_validation_pools_both_folds_unless_an_effect_is_anchored():
         after, params, b, n = scores[name]
         assert (after, b, n) == (pytest.approx(2.0), 10.0, 0.25)
         assert params == ({"level": 1.0}, None)
+
+
+class _AnchoredRamp(_AnchoredLevel):
+    """Fits a later part on a ramp through the record's start, as the built-in drift."""
+
+    name = "anchored_ramp"
+    fits_anchored_parts = True
+
+
+def test_a_ramp_through_the_records_start_is_scored_on_the_backward_fold_alone():
+    """Fitted on the first half a ramp sees the smaller part of the change, and its slope,
+    continued over the second half, doubles its error there; fitted on the second half
+    through the record's start and carried back, the error halves.  The forward fold
+    refuted a true drift (benchmark seed 22.2e6: Mackey-Glass, b 0.1 -> 0.0966, the first
+    half's slope took the second half's gap from 27.7 to 72.1), so such an effect is scored
+    on the backward fold alone, and on the forward one only where no backward fold is live.
+    """
+    from joblib import Parallel
+
+    from skdelay.gap._diagnose import _interpolates_backward, cross_validate
+
+    parts = (_Part(1.0, 0.5), _Part(1.2, 0.25))
+    _, scores, _ = cross_validate([_Level(), _AnchoredRamp()], parts, Parallel(n_jobs=1))
+    after, params, b, n = scores["anchored_ramp"]
+    # fitted on the second half (1.2) and scored on the first (truth 1.0) only
+    assert (after, b, n) == (pytest.approx(2.0), 10.0, 0.5)
+    assert params == (None, {"level": 1.2})
+    assert scores["level_shift"][1] == ({"level": 1.0}, {"level": 1.2})  # both ways
+    assert _interpolates_backward(get_effect("parameter_drift"))
+    assert not _interpolates_backward(_AnchoredLevel())
+    # on top of an effect that moves forward only, the backward fold is not live: the
+    # forward fold tests the ramp
+    chain = [(_OwnTransfer(), ({"level": 0.0}, {"level": 0.0}))]
+    _, scores, _ = cross_validate([_AnchoredRamp()], parts, Parallel(n_jobs=1), chain=chain)
+    assert scores["anchored_ramp"][1] == ({"level": 1.0}, None)
 
 
 class _SimLevel(_Level):
