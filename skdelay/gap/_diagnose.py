@@ -26,7 +26,7 @@ from ._indicators import Spectrum
 from ._lines import CALIBRATION_RUNS, F_ALPHA, without_lines
 from ._observation import Outliers
 from ._problem import GapProblem
-from ._range import excursion_tests, jump_test, range_test
+from ._range import RANGE_ALPHA, excursion_tests, jump_test, range_test
 from ._report import GapReport
 from ._signature import mean_std, pile_ups
 from ._units import parse_sample_dt
@@ -528,6 +528,47 @@ def _spike_evidence_first(problem, sig, table, evaluations, by_name):
     return table, evaluations, False
 
 
+def _excursions_left(problem, sig, chain):
+    """Do the record's excursions -- values or jumps beyond the clean runs' range, one of
+    the tests that made the gap significant (:func:`significance`) -- stay beyond the
+    range of the runs with ``chain`` added?
+
+    Such a rest is a localised finding however small its share of the gap: a slow hum
+    removes most of a hum-and-noise record's gap and leaves the noise's jumps, which no
+    binned indicator weighs (see :data:`EXCURSION_RESIDUAL`)."""
+    if not chain or not (sig.get("beyond_range_p", 1.0) < RANGE_ALPHA
+                         or sig.get("jumps_p", 1.0) < RANGE_ALPHA):
+        return False
+    try:
+        runs = problem.ensemble(chain, "full")
+    except CandidateFailed:
+        return False
+    return _excursions_off(problem.real, runs)
+
+
+def _settling_rows(problem, chain, table, evaluations, by_name):
+    """Rows of a second-round ``table`` (at most :data:`SPIKE_TRIES` of those removing
+    ``MIN_SHRINK`` of the rest, in its order) whose runs, on top of ``chain``, the record no
+    longer leaves beyond chance (:func:`_excursions_off`)."""
+    out, tried = set(), 0
+    for i in range(len(table)):
+        row = table.iloc[i]
+        if (row["status"] != "ok" or evaluations[i] is None or _contradicted(row)
+                or not row["shrink"] >= MIN_SHRINK):
+            continue
+        if tried == SPIKE_TRIES:
+            break
+        tried += 1
+        try:
+            runs = problem.ensemble(chain + [(by_name[row["effect"]], dict(row["params"]))],
+                                    "full")
+        except CandidateFailed:
+            continue
+        if not _excursions_off(problem.real, runs):
+            out.add(i)
+    return out
+
+
 def _dip_words(problem):
     """The record's and the model's dip in time units (a phrase for reasons)."""
     dt = problem.sample_dt
@@ -650,7 +691,7 @@ def _off_beside_lines(problem, evaluation, freqs):
 
 
 def _second_choice(problem, off, table, evaluations, rest_significant=True, marked=(),
-                   beside=(), freqs=None):
+                   beside=(), freqs=None, settled=()):
     """Row of the second-round table to add on top of the best effect, or None.
 
     The top row when it removes at least ``MIN_SHRINK`` of a residual that is itself
@@ -680,7 +721,10 @@ def _second_choice(problem, off, table, evaluations, rest_significant=True, mark
 
     A rest within the threshold whose spectrum stays off away from the fitted lines
     (``beside``: :func:`_off_beside_lines` at ``freqs``) takes the first row that removes
-    ``MIN_SHRINK`` of it and brings those indicators back there.
+    ``MIN_SHRINK`` of it and brings those indicators back there.  So does a rest within the
+    threshold that the record's excursions still lie beyond the chain's runs: the first row
+    among ``settled`` (:func:`_settling_rows`: it removes ``MIN_SHRINK`` and its runs take the
+    excursions back within their range).
     """
     local = _localised(off)
     for i, row in table.iterrows():
@@ -689,7 +733,7 @@ def _second_choice(problem, off, table, evaluations, rest_significant=True, mark
             continue
         if row["shrink"] >= MIN_SHRINK and (
                 (i == 0 and rest_significant)
-                or (not rest_significant and row["effect"] in marked)
+                or (not rest_significant and (row["effect"] in marked or i in settled))
                 or (not rest_significant and beside
                     and not set(beside) & _off_beside_lines(problem, evaluations[i], freqs))):
             return int(i)
@@ -723,7 +767,8 @@ def _marked(problem, candidates, best, after):
     return {e.name for e in candidates if e.name != best and e.has_local_mark(problem)}
 
 
-def _residual_left(problem, after, threshold, gap_before, marked=(), chain=()):
+def _residual_left(problem, after, threshold, gap_before, marked=(), chain=(),
+                   excursions=False):
     """Is a second effect worth fitting on top of the best one?
 
     Only when what the best effect leaves is itself a finding: significant by the test
@@ -742,10 +787,12 @@ def _residual_left(problem, after, threshold, gap_before, marked=(), chain=()):
     causes.  Every two-cause case checked (seeds 14.3e6, 14.5e6 and 14.8e6) left 9.7-314
     against thresholds of 5.7-8.4, or its line indicator off (electro-optic noise + hum:
     11.2 against 11.2).  When ``chain`` (the effects fitted) only adds spectral lines, a
-    spectrum still off away from them is no fit error (:func:`_off_beside_lines`).
+    spectrum still off away from them is no fit error (:func:`_off_beside_lines`).  Nor are
+    the record's excursions that the chain's runs still lack (``excursions``:
+    :func:`_excursions_left`).
     """
     off = off_indicators(problem, after)
-    return bool(set(off) & set(LOCAL_INDICATORS) or marked
+    return bool(excursions or set(off) & set(LOCAL_INDICATORS) or marked
                 or _off_beside_lines(problem, after, _line_freqs(chain))
                 or (after.gap > threshold
                     and (bool(off) or after.gap > MIN_RESIDUAL_SHARE * gap_before))
@@ -1139,11 +1186,12 @@ def _untested_in_place(df, scores):
 
 
 def _second_round(problem, candidates, by_name, chain, after, parallel, cv, parts,
-                  threshold):
+                  threshold, excursions=False):
     """Fit the candidates on top of ``chain`` (the best effect); ``(table, evaluations,
     cross_validated)`` with the chosen second effect first, or ``(None, None, False)``.
     ``parallel``: the diagnosis' :class:`_Stages`; ``threshold``: the no-gap threshold
-    (is the rest itself significant? see :func:`_second_choice`).
+    (is the rest itself significant? see :func:`_second_choice`); ``excursions``: the record
+    still leaves the range of the chain's runs (:func:`_excursions_left`).
 
     Led by the indicators that remain off: a localised leftover (a line, a clipped end)
     is handed to the effects that leave their mark there; a broadband best effect
@@ -1161,7 +1209,7 @@ def _second_round(problem, candidates, by_name, chain, after, parallel, cv, part
     marked = _marked(problem, candidates, best, after)
     freqs = _line_freqs(chain)
     beside = _off_beside_lines(problem, after, freqs)
-    if not rest_significant and not _localised(off) and not beside:
+    if not rest_significant and not _localised(off) and not beside and not excursions:
         # only a mark no indicator measures called for this round, and only an effect
         # answering it may be named (_second_choice): the others need no fit (line hints
         # are common; fitting every candidate on top of them took a 6000-sample
@@ -1181,8 +1229,10 @@ def _second_round(problem, candidates, by_name, chain, after, parallel, cv, part
             if (ok and any(best_on_half)) else None
     second, second_evals = _table(more, after.gap, problem, by_name, cv2)
     second = _with_consistency(problem, second, by_name, -np.inf)
+    settled = (_settling_rows(problem, chain, second, second_evals, by_name)
+               if excursions and not rest_significant else ())
     pick = _second_choice(problem, off, second, second_evals, rest_significant, marked,
-                          beside, freqs)
+                          beside, freqs, settled)
     if pick is None:
         return None, None, False
     if pick:  # the chosen candidate heads the table the report describes
@@ -1956,12 +2006,14 @@ def _run(real, simulator, sample_dt, candidates, random_state, n_jobs, n_sims, c
     combined = None
     after = evaluations[0] if chain else None
     second = None
+    spikes = _excursions_left(problem, sig, chain) if combine else False
     if best is not None and combine and len(candidates) > 1 and _residual_left(
             problem, after, sig["threshold"], gap_before,
-            _marked(problem, candidates, best, after), chain):
+            _marked(problem, candidates, best, after), chain, spikes):
         parallel.start("second round")
         second, second_evals, cv2 = _second_round(problem, candidates, by_name, chain, after,
-                                                  parallel, cv, parts, sig["threshold"])
+                                                  parallel, cv, parts, sig["threshold"],
+                                                  spikes)
         parallel.start("pair check")
         if second is not None:
             pick = _better_first(problem, table, evaluations, by_name, second, second_evals,
@@ -2002,12 +2054,13 @@ def _run(real, simulator, sample_dt, candidates, random_state, n_jobs, n_sims, c
             chain = [(by_name[best], dict(top["params"]))]
             after = evaluations[0]
             second = None
+            spikes = _excursions_left(problem, sig, chain)
             if _residual_left(problem, after, sig["threshold"], gap_before,
-                              _marked(problem, candidates, best, after), chain):
+                              _marked(problem, candidates, best, after), chain, spikes):
                 parallel.start("second round")
                 second, second_evals, cv2 = _second_round(problem, candidates, by_name,
                                                           chain, after, parallel, cv, parts,
-                                                          sig["threshold"])
+                                                          sig["threshold"], spikes)
         if second is not None:
             # one realisation cannot rank two second effects that each explain the rest
             tie2 = second_tie_test(problem, second, second_evals, by_name, chain,
@@ -2042,7 +2095,8 @@ def _run(real, simulator, sample_dt, candidates, random_state, n_jobs, n_sims, c
     small_rest = bool(status == "partly" and not lacking and all(ok for _, ok, _ in checks)
                       and not _residual_left(problem, after, sig["threshold"], gap_before,
                                              _marked(problem, candidates, best, after),
-                                             chain))
+                                             chain, spikes if combined is None
+                                             else _excursions_left(problem, sig, chain)))
     if best is not None and cv is not None:
         # the report's headline numbers are the cross-validated ones
         cv_shrink = combined["shrink"] if combined else float(top["shrink"])
