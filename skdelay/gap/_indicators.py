@@ -422,16 +422,15 @@ def fe_curve(x, taus, *, m=2, n_queries=400, max_len=10_000, refine=True, with_s
     delay; ``refine``: more queries around the dip, for locating it); with ``with_se`` also
     its standard error (batch means over the queries).
 
-    The neighbours are exact (``search="tree"``, the scan's projected k-d tree: the same
-    neighbourhoods as a plain k-d tree per delay, sigma equal within 1e-13): 1.3-1.8 times
-    faster on 6000-10 000-sample runs of the CO2 laser, Ikeda and Mackey-Glass, clean and
-    noisy (``benchmarks/fe_curve_search.py``); these curves took half of a 6000-sample
-    Ikeda diagnosis's time with the plain tree."""
+    The plain k-d tree per delay (``search="exact"``), not the scan's tree search: that one
+    is 1.3-1.8 times faster here and agreed to 1e-15 on clean and noisy runs, but on some
+    runs of one diagnosis sigma differed by up to 0.17 % (cause not traced), enough to turn
+    a timebase/delay tie (electro-optic oscillator, benchmark seed 22.7e6; stop 60 note)."""
     from .._selection import forecast_error_curve
 
     z = zscore(np.asarray(x)[:max_len])
     curve = forecast_error_curve(z, m=(m,), tau=[int(t) for t in taus], n_queries=n_queries,
-                                 n_neighbors=20, search="tree", random_state=0, refine=refine)
+                                 n_neighbors=20, search="exact", random_state=0, refine=refine)
     sigma = np.asarray(curve.iloc[:, 0], dtype=float)
     if with_se:
         return sigma, np.asarray(curve.attrs["se"].iloc[:, 0], dtype=float)
