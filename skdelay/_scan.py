@@ -568,7 +568,24 @@ def _heap_replace(hd, hj, d, j):
 
 
 @njit(cache=True, nogil=True)
-def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, leaf, sq):
+def _by_distance(hd, rank):
+    """``rank``: positions of ``hd`` in increasing order (insertion sort, stable: k is
+    small and the heap is half ordered already)."""
+    for x in range(hd.size):
+        rank[x] = x
+    for x in range(1, hd.size):
+        r = rank[x]
+        d = hd[r]
+        y = x - 1
+        while y >= 0 and hd[rank[y]] > d:
+            rank[y + 1] = rank[y]
+            y -= 1
+        rank[y + 1] = r
+
+
+@njit(cache=True, nogil=True)
+def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, leaf, sq,
+               chunk):
     """Exact k-NN and local fits of every tau of ``starts`` for the queries ``q_t``, compiled.
 
     For each tau (second-window start ``c``) a k-d tree is built on the
@@ -599,6 +616,12 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
 
     Adds the squared errors to ``sq[tau_index, batch]`` (batch ``i * n_batches
     // n_queries`` of query ``i``).
+
+    The result is that of the plain k-d tree (:func:`_exact_task`) to the last bit, not
+    only the same neighbourhoods: each neighbourhood is fitted in order of distance, as the
+    plain tree returns it, and the squared errors are summed in query order per batch, over
+    the same slices of ``chunk`` queries.  Only the order of points at exactly equal
+    distances (a series that repeats values) can differ, and with it the fit.
     """
     n_db = db_t.size
     p = U.shape[1]
@@ -630,6 +653,9 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
     stack_d = np.empty(256)
     width = 2 * m
     Vn, yn, w, vq, fit_buf, a = neighbourhood_buffers(k, width)
+    e2 = np.empty(n_q)
+    part = np.empty(n_batches)
+    rank = np.empty(k, dtype=np.int64)
     for it in range(n_tau):
         c = starts[it]
         for r in range(n_db):
@@ -724,8 +750,9 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
                             in_heap[hj[0]] = False
                         in_heap[j] = True
                         _heap_replace(hd, hj, acc, j)
+            _by_distance(hd, rank)  # the plain tree's order: nearest first, empty slots last
             for x in range(k):
-                j = hj[x]
+                j = hj[rank[x]]
                 if j < 0:
                     w[x] = 0.0
                     yn[x] = 0.0
@@ -739,7 +766,13 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
                     Vn[x, m + lag] = s[j - c - lag]
             _, pred = fit_neighbourhood(Vn, yn, w, vq, ridge, order, fallback, fit_buf, a)
             e = pred - s[q + 1]
-            sq[it, (i * n_batches) // n_q] += e * e
+            e2[i] = e * e
+        for lo in range(0, n_q, chunk):  # as np.bincount over each slice, then added
+            part[:] = 0.0
+            for i in range(lo, min(n_q, lo + chunk)):
+                part[(i * n_batches) // n_q] += e2[i]
+            for b in range(n_batches):
+                sq[it, b] += part[b]
         for x in range(k):
             if hj[x] >= 0:
                 in_heap[hj[x]] = False
@@ -900,8 +933,10 @@ def _tree_task(s, U, m, starts, db_t, q_t, opt, n_batches):
     k = min(opt["k"], db_t.size)
     sq = np.zeros((starts.size, n_batches))
     theiler = -1 if opt["theiler"] is None else int(opt["theiler"])
+    # the query slices of _exact_task, so that the sums are its sums
+    chunk = chunk_slices(q_t.size, opt["k"] * 2 * m)[0].stop if q_t.size else 1
     tree_cells(s, np.asarray(U), q_t, db_t, m, starts, k, theiler, opt["ridge"],
-               opt["order"], float(s[db_t + 1].mean()), TREE_LEAF_SIZE, sq)
+               opt["order"], float(s[db_t + 1].mean()), TREE_LEAF_SIZE, sq, chunk)
     return sq, np.full(starts.size, q_t.size)
 
 

@@ -1,10 +1,12 @@
-"""Simulator runs are made once per diagnosis: the cache returns the same numbers."""
+"""Simulator runs and indicator profiles are made once per diagnosis: the caches return
+the same numbers."""
 
 import pickle
 
 import numpy as np
 
 from skdelay.gap import get_effect
+from skdelay.gap._indicators import FeatureCache, profiles
 from skdelay.gap._problem import GapProblem, RunCache
 from skdelay.systems import MackeyGlass
 
@@ -53,13 +55,13 @@ def test_the_cache_keeps_its_byte_budget_and_is_not_pickled():
     cache = RunCache(max_bytes=3 * 8 * 100)  # three runs of 100 samples
     for seed in range(5):
         cache.run(sim, 100, 1.0, seed, {})
-    assert cache._bytes <= cache.max_bytes and len(cache._runs) == 3
+    assert cache._store._bytes <= cache.max_bytes and len(cache._store) == 3
     cache.run(sim, 100, 1.0, 4, {})  # the newest is kept ...
     assert sim.calls == 5
     cache.run(sim, 100, 1.0, 0, {})  # ... the oldest went first
     assert sim.calls == 6
     clone = pickle.loads(pickle.dumps(cache))
-    assert clone.max_bytes == cache.max_bytes and not clone._runs
+    assert clone.max_bytes == cache.max_bytes and len(clone._store) == 0
 
 
 def test_the_halves_of_a_split_reuse_the_whole_records_runs():
@@ -75,3 +77,88 @@ def test_the_halves_of_a_split_reuse_the_whole_records_runs():
     half = first.ensemble(chain, "fast")  # same seeds, same length: no new simulation
     assert problem.run_cache.misses == misses and problem.run_cache.hits >= len(half)
     assert all(np.array_equal(a, b) for a, b in zip(whole, half))
+
+
+def test_a_repeated_profile_is_served_from_the_feature_cache_unchanged(monkeypatch):
+    """Same run, same indicator: the profile is computed once and the numbers are those
+    computed without a cache; a run that differs in one sample is a new key; a paired
+    indicator's key includes the run it is read against."""
+    mg = MackeyGlass()
+    real = mg.simulate(3000, random_state=7)
+    problem = GapProblem(real, mg, n_sims=3, search_length=1000, random_state=0,
+                         scan_dips=False)
+    indicators = problem.indicators
+    assert any(getattr(ind, "paired", False) for ind in indicators.values())
+    runs = [mg.simulate(3000, random_state=s) for s in (21, 22)]
+    plain = profiles(indicators, runs)
+    calls = []
+    for ind in indicators.values():
+        real_profile = ind.profile
+
+        def counted(z, *args, _f=real_profile, **kw):
+            calls.append(1)
+            return _f(z, *args, **kw)
+
+        monkeypatch.setattr(ind, "profile", counted)
+    cache = FeatureCache()
+    first = profiles(indicators, runs, cache=cache)
+    n_first = len(calls)
+    assert n_first == 2 * len(indicators) and cache.hits == 0
+    again = profiles(indicators, [r.copy() for r in runs], cache=cache)
+    assert len(calls) == n_first and cache.hits == n_first
+    for name, (f, b) in plain.items():
+        for got in (first, again):
+            assert np.array_equal(got[name][0], f)
+            assert (b is None) == (got[name][1] is None)
+    # the stacked features are the caller's to change; the stored ones are not changed
+    again[next(iter(again))][0][:] = np.nan
+    third = profiles(indicators, runs, cache=cache)
+    assert all(np.array_equal(third[k][0], plain[k][0]) for k in plain)
+    # one changed sample: every indicator of that run anew; the paired one of the run read
+    # against it too (its database changed)
+    moved = [runs[0].copy(), runs[1]]
+    moved[0][100] += 1e-9
+    before = len(calls)
+    profiles(indicators, moved, cache=cache)
+    n_paired = sum(getattr(ind, "paired", False) for ind in indicators.values())
+    assert len(calls) - before == len(indicators) + n_paired
+    assert len(pickle.loads(pickle.dumps(cache))) == 0
+
+
+def test_reseeded_twins_share_the_feature_cache_and_the_halves_do_not():
+    mg = MackeyGlass()
+    problem = GapProblem(mg.simulate(4000, random_state=5), mg, n_sims=2,
+                         search_length=1000, random_state=0, scan_dips=False)
+    twin = problem.reseeded(3)
+    assert twin.indicators is problem.indicators and twin.feature_cache is problem.feature_cache
+    first, second = problem.split()  # their indicators are set up on the halves
+    assert first.feature_cache is not problem.feature_cache
+    assert first.feature_cache is not second.feature_cache
+
+
+def test_the_gaps_forecast_error_curve_is_the_plain_trees_with_and_without_ties(monkeypatch):
+    """``fe_curve`` takes the faster tree search only where it gives the plain tree's bits
+    (no repeated values) and the plain tree where distances tie (a quantized run)."""
+    import skdelay._selection as selection
+    from skdelay.gap._indicators import fe_curve, zscore
+
+    x = MackeyGlass().simulate(4000, random_state=9)
+    x = x + 0.02 * x.std() * np.random.default_rng(1).standard_normal(x.size)
+    quantized = get_effect("quantization").apply(x, {"step": 0.05})
+    assert np.unique(quantized).size < quantized.size
+    taus = [2, 9, 16, 17, 18, 30]
+    searches = []
+    real_curve = selection.forecast_error_curve
+
+    def spy(*args, search="auto", **kw):
+        searches.append(search)
+        return real_curve(*args, search=search, **kw)
+
+    monkeypatch.setattr(selection, "forecast_error_curve", spy)
+    for series, expected in ((x, "tree"), (quantized, "exact")):
+        sigma, se = fe_curve(series, taus, with_se=True)
+        assert searches[-1] == expected
+        plain = real_curve(zscore(series), m=(2,), tau=taus, n_queries=400, n_neighbors=20,
+                           search="exact", random_state=0, refine=True)
+        assert np.array_equal(sigma, plain.iloc[:, 0].to_numpy())
+        assert np.array_equal(se, plain.attrs["se"].iloc[:, 0].to_numpy())

@@ -337,12 +337,12 @@ def test_tree_search_of_held_out_queries_is_the_exact_knn():
         out = np.zeros((1, q_t.size))  # one batch per query: every error on its own
         if queries is not None:
             tree_cells(s, U, queries, db_t, 2, np.array([29]), 6, 3, 1e-3, 1, 0.0,
-                       TREE_LEAF_SIZE, out)
+                       TREE_LEAF_SIZE, out, queries.size)
         else:  # each query alone: no seeds from a neighbour in time
             for i, q in enumerate(q_t):
                 one = np.zeros((1, 1))
                 tree_cells(s, U, np.array([q]), db_t, 2, np.array([29]), 6, 3, 1e-3, 1,
-                           0.0, TREE_LEAF_SIZE, one)
+                           0.0, TREE_LEAF_SIZE, one, 1)
                 out[0, i] = one[0, 0]
         sq[name] = out
     np.testing.assert_allclose(sq["held_out"], sq["one_by_one"], rtol=1e-9)
@@ -370,3 +370,19 @@ def test_auto_search_is_exact_at_full_precision_and_uses_lists_for_sparse_querie
     sparse = forecast_error_curve(mg30, n_queries=10, **kw)
     lists = forecast_error_curve(mg30, n_queries=10, search="candidates", **kw)
     np.testing.assert_array_equal(sparse.to_numpy(), lists.to_numpy())
+
+
+@pytest.mark.parametrize("n, n_queries, m", [(6000, 400, (2,)), (3000, None, (3,)),
+                                             (30_000, None, (2,))])
+def test_tree_search_gives_the_plain_trees_result_to_the_last_bit(n, n_queries, m):
+    # a series without repeated values: the projected tree finds the plain tree's
+    # neighbourhoods, fits them in its order and sums the errors as it does (30 000 queries
+    # at m = 2 span two of the plain search's query slices); the gap diagnosis relies on it
+    s = measured_mackey_glass(n, 30, noise=0.05, bits=None, seed=11)
+    assert np.unique(s).size == s.size
+    kw = {"m": m, "tau": [3, 17, 29, 30, 44], "n_neighbors": 20, "n_queries": n_queries,
+          "refine": False, "random_state": 0}
+    tree = forecast_error_curve(s, search="tree", **kw)
+    exact = forecast_error_curve(s, search="exact", **kw)
+    assert np.array_equal(tree.to_numpy(), exact.to_numpy())
+    assert np.array_equal(tree.attrs["se"].to_numpy(), exact.attrs["se"].to_numpy())

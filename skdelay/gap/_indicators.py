@@ -17,9 +17,12 @@ candidate.
 
 from __future__ import annotations
 
+import hashlib
+
 import numpy as np
 from scipy import signal
 
+from ._memo import BoundedStore
 from ._signature import mean_std, zscore
 
 #: z-scores are capped at this value so that one bin cannot dominate a gap.
@@ -422,16 +425,25 @@ def fe_curve(x, taus, *, m=2, n_queries=400, max_len=10_000, refine=True, with_s
     delay; ``refine``: more queries around the dip, for locating it); with ``with_se`` also
     its standard error (batch means over the queries).
 
-    The plain k-d tree per delay (``search="exact"``), not the scan's tree search: that one
-    is 1.3-1.8 times faster here and agreed to 1e-15 on clean and noisy runs, but on some
-    runs of one diagnosis sigma differed by up to 0.17 % (cause not traced), enough to turn
-    a timebase/delay tie (electro-optic oscillator, timebase 0.980 at step 0.25, 6000 samples,
-    benchmark seed 22.7e6)."""
+    The result is the plain k-d tree's per delay to the last bit; the search that gives it
+    is chosen by whether the run repeats a value.  Without repeats, the scan's projected k-d
+    tree (``search="tree"``), which fits each neighbourhood in the plain tree's order and sums
+    the errors as it does: sigma and its standard error bit-identical on clean and noisy runs
+    of Ikeda, Mackey-Glass and the electro-optic oscillator, 1.5-1.9 times faster.  A run
+    that repeats values (clipped, quantized) has tied distances, and which of the tied points
+    a search keeps depends on its traversal: there the plain k-d tree (``search="exact"``),
+    whose choice the diagnosis was calibrated with.  Bit-identical, not merely equal to
+    1e-15: such a difference moved a fitted timebase factor by one unit in the last place,
+    and runs of a chaotic simulator at the two factors differ (electro-optic oscillator,
+    timebase 0.98 at step 0.25, 6000 samples: gap after the fit 13.05 against 13.78); on
+    benchmark seed 22.7e6 it turned a timebase into a delay mismatch.
+    """
     from .._selection import forecast_error_curve
 
     z = zscore(np.asarray(x)[:max_len])
+    search = "exact" if np.unique(z).size < z.size else "tree"
     curve = forecast_error_curve(z, m=(m,), tau=[int(t) for t in taus], n_queries=n_queries,
-                                 n_neighbors=20, search="exact", random_state=0, refine=refine)
+                                 n_neighbors=20, search=search, random_state=0, refine=refine)
     sigma = np.asarray(curve.iloc[:, 0], dtype=float)
     if with_se:
         return sigma, np.asarray(curve.attrs["se"].iloc[:, 0], dtype=float)
@@ -640,18 +652,21 @@ FAST = (Spectrum, BandSpectrum, Histogram, Increments, Autocorrelation, Segment,
 FULL = (ForecastError, CrossPrediction)
 
 
-def profiles(indicators, runs, blocks=False, n_jobs=None):
+def profiles(indicators, runs, blocks=False, n_jobs=None, cache=None):
     """``{name: (features (runs, bins), blocks (runs, n_blocks, bins) or None)}``.
 
     Block features (for the spread) are only computed with ``blocks=True``.
     ``n_jobs``: joblib workers over the runs (the clean ensemble's profiles, made
     once in the main process; None runs them here, as inside a fit's worker).
+    ``cache``: a :class:`FeatureCache` of these ``indicators`` (used without ``n_jobs``).
     """
     zs = [zscore(x) for x in runs]
     # a paired indicator (cross-prediction) reads run j against run j + 1
     jobs = [(z, zs[(j + 1) % len(zs)]) for j, z in enumerate(zs)]
     if n_jobs is None or len(jobs) < 2:
-        per_run = [_run_profiles(indicators, z, other, blocks) for z, other in jobs]
+        per_run = [_run_profiles(indicators, z, other, blocks) if cache is None
+                   else cache.run_profiles(indicators, z, other, blocks)
+                   for z, other in jobs]
     else:
         from joblib import Parallel, delayed
 
@@ -666,12 +681,76 @@ def profiles(indicators, runs, blocks=False, n_jobs=None):
     return out
 
 
+def _profile(ind, z, other, blocks):
+    """One indicator's ``(features, blocks)`` of one z-scored run."""
+    return (ind.profile(z, database=other) if getattr(ind, "paired", False)
+            else ind.profile(z, blocks=blocks))
+
+
 def _run_profiles(indicators, z, other, blocks):
     """Every indicator's ``(features, blocks)`` of one z-scored run (``other``: the run a
     paired indicator reads it against)."""
-    return {name: (ind.profile(z, database=other) if getattr(ind, "paired", False)
-                   else ind.profile(z, blocks=blocks))
-            for name, ind in indicators.items()}
+    return {name: _profile(ind, z, other, blocks) for name, ind in indicators.items()}
+
+
+class FeatureCache:
+    """Indicator profiles by ``(indicator, run)``, kept for reuse within one diagnosis.
+
+    The same run is profiled many times: a run served again by the run cache, an effect
+    whose parameters leave a run as it was (a clipping level above its range), the tie
+    test's fresh evaluations of chains already scored.  Ikeda, step 0.25, noise + hum,
+    6000 samples, one worker: 8424 runs profiled, 2055 of them repeats, 12.5 of the 85 s
+    spent profiling.
+
+    A profile is a deterministic function of the indicator's set-up and the run's values
+    (and, for a paired indicator, of the run it is read against), so the key is the
+    indicator's name, ``blocks`` and a digest of the values: valid for one set of
+    indicators only (a :class:`~skdelay.gap._problem.GapProblem` and its reseeded twins,
+    which share them; the halves of a split set up their own).  Stored arrays are
+    read-only and copied out by :func:`profiles`.  At most ``MAX_BYTES``; not pickled.
+    """
+
+    #: bytes kept (a profile is at most a few thousand bins)
+    MAX_BYTES = 64 * 2**20
+
+    def __init__(self, max_bytes=MAX_BYTES):
+        self._store = BoundedStore(max_bytes)
+
+    @property
+    def hits(self):
+        return self._store.hits
+
+    @staticmethod
+    def digest(z):
+        """A 128-bit digest of a run's values (shape and dtype included)."""
+        z = np.ascontiguousarray(z)
+        h = hashlib.blake2b(digest_size=16)
+        h.update(f"{z.dtype.str}{z.shape}".encode())
+        h.update(z.data)
+        return h.digest()
+
+    def run_profiles(self, indicators, z, other, blocks):
+        """:func:`_run_profiles`, each indicator's profile from the cache when made before."""
+        dz, do = self.digest(z), None
+        out = {}
+        for name, ind in indicators.items():
+            paired = getattr(ind, "paired", False)
+            if paired and do is None:
+                do = self.digest(other)
+            key = (name, bool(blocks), dz, do if paired else None)
+            hit = self._store.get(key)
+            if hit is None:
+                hit = tuple(None if a is None else np.array(a)
+                            for a in _profile(ind, z, other, blocks))
+                for a in hit:
+                    if a is not None:
+                        a.setflags(write=False)
+                self._store.put(key, hit, sum(a.nbytes for a in hit if a is not None))
+            out[name] = hit
+        return out
+
+    def __len__(self):
+        return len(self._store)
 
 
 def make_indicators(real, sims, sample_dt, delay_samples, lines=()):

@@ -8,9 +8,7 @@ random numbers and the objective is smooth in the effect parameters).
 
 from __future__ import annotations
 
-import threading
 import zlib
-from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -25,8 +23,16 @@ from ._effects import (
     SimulationFailed,
     call_hook,
 )
-from ._indicators import ensemble_stats, indicator_gap, make_indicators, profiles, zscores
+from ._indicators import (
+    FeatureCache,
+    ensemble_stats,
+    indicator_gap,
+    make_indicators,
+    profiles,
+    zscores,
+)
 from ._lines import CALIBRATION_RUNS, line_scan, spectrum_view
+from ._memo import BoundedStore
 from ._signature import zscore
 from ._where import DIP_DEPTH_RATIO, DIP_Z, dip_window
 
@@ -75,11 +81,19 @@ class RunCache:
     MAX_BYTES = 256 * 2**20
 
     def __init__(self, max_bytes=MAX_BYTES):
-        self.max_bytes = int(max_bytes)
-        self._runs = OrderedDict()
-        self._bytes = 0
-        self._lock = threading.Lock()
-        self.hits = self.misses = 0
+        self._store = BoundedStore(max_bytes)
+
+    @property
+    def max_bytes(self):
+        return self._store.max_bytes
+
+    @property
+    def hits(self):
+        return self._store.hits
+
+    @property
+    def misses(self):
+        return self._store.misses
 
     @staticmethod
     def key(n, sample_dt, seed, overrides):
@@ -102,30 +116,13 @@ class RunCache:
         """:func:`run_simulator`'s result, from the cache when this run was made before."""
         key = self.key(n, sample_dt, seed, overrides)
         if key is not None:
-            with self._lock:
-                x = self._runs.get(key)
-                if x is not None:
-                    self._runs.move_to_end(key)
-                    self.hits += 1
-                    return x.copy()
+            x = self._store.get(key)
+            if x is not None:
+                return x.copy()
         x = run_simulator(simulator, n, sample_dt, seed, overrides)
-        if key is None or x.nbytes > self.max_bytes:
-            return x
-        with self._lock:
-            self.misses += 1
-            if key not in self._runs:
-                self._runs[key] = x.copy()
-                self._bytes += x.nbytes
-            while self._bytes > self.max_bytes:
-                _, old = self._runs.popitem(last=False)
-                self._bytes -= old.nbytes
+        if key is not None:
+            self._store.put(key, x.copy(), x.nbytes)
         return x
-
-    def __getstate__(self):
-        return {"max_bytes": self.max_bytes}
-
-    def __setstate__(self, state):
-        self.__init__(state["max_bytes"])
 
 
 def check_run(x, n, what, error=SimulationFailed):
@@ -271,6 +268,8 @@ class GapProblem:
         self.spectrum_view = spectrum_view(real, runs[:2], self.sample_dt) if scan_dips else None
         self.indicators = make_indicators(real, runs, self.sample_dt, self.delay_samples,
                                           self.lines)
+        # profiles of these indicators by run (shared with reseeded twins: same indicators)
+        self.feature_cache = FeatureCache()
         self._set_real(real)
         self.base_features = profiles(self.indicators, runs, blocks=True, n_jobs=n_jobs)
         self.base_var = {k: ensemble_stats(f, self.indicators[k], b)[1]
@@ -430,7 +429,8 @@ class GapProblem:
         """Fast-indicator features of one simulator run (``overrides``, length ``n``)."""
         names = names or [k for k, ind in self.indicators.items() if ind.tier == "fast"]
         run = self.run_cache.run(self.simulator, n, self.sample_dt, seed, overrides)
-        feats = profiles({k: self.indicators[k] for k in names}, [run])
+        feats = profiles({k: self.indicators[k] for k in names}, [run],
+                         cache=self.feature_cache)
         return {k: f[0] for k, (f, _) in feats.items()}
 
     def evaluate(self, chain, tier="full", keep_runs=False, n_search=None):
@@ -438,7 +438,8 @@ class GapProblem:
         on ``n_search`` runs: see :meth:`ensemble`)."""
         runs = self.ensemble(chain, tier, n_search)
         names = [k for k, ind in self.indicators.items() if tier == "full" or ind.tier == "fast"]
-        feats = profiles({k: self.indicators[k] for k in names}, runs)
+        feats = profiles({k: self.indicators[k] for k in names}, runs,
+                         cache=self.feature_cache)
         ev = self._compare({k: f for k, (f, _) in feats.items()}, runs)
         if not keep_runs:
             ev.runs = None
