@@ -55,13 +55,13 @@ def test_the_cache_keeps_its_byte_budget_and_is_not_pickled():
     cache = RunCache(max_bytes=3 * 8 * 100)  # three runs of 100 samples
     for seed in range(5):
         cache.run(sim, 100, 1.0, seed, {})
-    assert cache._store._bytes <= cache.max_bytes and len(cache._store) == 3
+    assert cache._bytes <= cache.max_bytes and len(cache) == 3
     cache.run(sim, 100, 1.0, 4, {})  # the newest is kept ...
     assert sim.calls == 5
     cache.run(sim, 100, 1.0, 0, {})  # ... the oldest went first
     assert sim.calls == 6
     clone = pickle.loads(pickle.dumps(cache))
-    assert clone.max_bytes == cache.max_bytes and len(clone._store) == 0
+    assert clone.max_bytes == cache.max_bytes and len(clone) == 0
 
 
 def test_the_halves_of_a_split_reuse_the_whole_records_runs():

@@ -693,7 +693,7 @@ def _run_profiles(indicators, z, other, blocks):
     return {name: _profile(ind, z, other, blocks) for name, ind in indicators.items()}
 
 
-class FeatureCache:
+class FeatureCache(BoundedStore):
     """Indicator profiles by ``(indicator, run)``, kept for reuse within one diagnosis.
 
     The same run is profiled many times: a run served again by the run cache, an effect
@@ -714,11 +714,7 @@ class FeatureCache:
     MAX_BYTES = 64 * 2**20
 
     def __init__(self, max_bytes=MAX_BYTES):
-        self._store = BoundedStore(max_bytes)
-
-    @property
-    def hits(self):
-        return self._store.hits
+        super().__init__(max_bytes)
 
     @staticmethod
     def digest(z):
@@ -738,19 +734,16 @@ class FeatureCache:
             if paired and do is None:
                 do = self.digest(other)
             key = (name, bool(blocks), dz, do if paired else None)
-            hit = self._store.get(key)
+            hit = self.get(key)
             if hit is None:
                 hit = tuple(None if a is None else np.array(a)
                             for a in _profile(ind, z, other, blocks))
                 for a in hit:
                     if a is not None:
                         a.setflags(write=False)
-                self._store.put(key, hit, sum(a.nbytes for a in hit if a is not None))
+                self.put(key, hit, sum(a.nbytes for a in hit if a is not None))
             out[name] = hit
         return out
-
-    def __len__(self):
-        return len(self._store)
 
 
 def make_indicators(real, sims, sample_dt, delay_samples, lines=()):

@@ -17,7 +17,10 @@ __all__ = ["BoundedStore"]
 
 
 class BoundedStore:
-    """``key -> value`` with a byte budget (``nbytes(value)`` per entry), LRU eviction."""
+    """``key -> value`` with a byte budget (``nbytes`` given per entry), LRU eviction.
+
+    The caches subclass it and add the one method that makes and keys their values.
+    """
 
     def __init__(self, max_bytes):
         self.max_bytes = int(max_bytes)

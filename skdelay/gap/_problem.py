@@ -61,7 +61,7 @@ def run_simulator(simulator, n, sample_dt, seed, overrides):
     return x[total - n: total] if total > n else x
 
 
-class RunCache:
+class RunCache(BoundedStore):
     """Simulator runs by ``(length, seed, overrides)``, kept for reuse within one diagnosis.
 
     A diagnosis asks for the same run many times: a search's last comparisons rerun its
@@ -81,19 +81,7 @@ class RunCache:
     MAX_BYTES = 256 * 2**20
 
     def __init__(self, max_bytes=MAX_BYTES):
-        self._store = BoundedStore(max_bytes)
-
-    @property
-    def max_bytes(self):
-        return self._store.max_bytes
-
-    @property
-    def hits(self):
-        return self._store.hits
-
-    @property
-    def misses(self):
-        return self._store.misses
+        super().__init__(max_bytes)
 
     @staticmethod
     def key(n, sample_dt, seed, overrides):
@@ -116,12 +104,12 @@ class RunCache:
         """:func:`run_simulator`'s result, from the cache when this run was made before."""
         key = self.key(n, sample_dt, seed, overrides)
         if key is not None:
-            x = self._store.get(key)
+            x = self.get(key)
             if x is not None:
                 return x.copy()
         x = run_simulator(simulator, n, sample_dt, seed, overrides)
         if key is not None:
-            self._store.put(key, x.copy(), x.nbytes)
+            self.put(key, x.copy(), x.nbytes)
         return x
 
 
