@@ -620,8 +620,9 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
     The result is that of the plain k-d tree (:func:`_exact_task`) to the last bit, not
     only the same neighbourhoods: each neighbourhood is fitted in order of distance, as the
     plain tree returns it, and the squared errors are summed in query order per batch, over
-    the same slices of ``chunk`` queries.  Only the order of points at exactly equal
-    distances (a series that repeats values) can differ, and with it the fit.
+    the same slices of ``chunk`` queries.  Only the order of points at equal distances (a
+    series that repeats values), or at distances within rounding of each other, can
+    differ, and with it the fit.
     """
     n_db = db_t.size
     p = U.shape[1]

@@ -425,8 +425,9 @@ def fe_curve(x, taus, *, m=2, n_queries=400, max_len=10_000, refine=True, with_s
     delay; ``refine``: more queries around the dip, for locating it); with ``with_se`` also
     its standard error (batch means over the queries).
 
-    The result is the plain k-d tree's per delay to the last bit; the search that gives it
-    is chosen by whether the run repeats a value.  Without repeats, the scan's projected k-d
+    The result is the plain k-d tree's per delay to the last bit (barring two neighbours'
+    distances within rounding of each other); the search that gives it is chosen by
+    whether the run repeats a value.  Without repeats, the scan's projected k-d
     tree (``search="tree"``), which fits each neighbourhood in the plain tree's order and sums
     the errors as it does: sigma and its standard error bit-identical on clean and noisy runs
     of Ikeda, Mackey-Glass and the electro-optic oscillator, 1.5-1.9 times faster.  A run
