@@ -524,14 +524,45 @@ def _run_nulls(bins, logs, run_pf):
     for j in range(runs):
         zj = _zmap(logs[j], np.delete(logs, j, axis=0))[bins]
         pj = run_pf[j][bins]
-        for h in np.flatnonzero(pj < F_ALPHA):
-            near = _span(bins, bins[h])
-            z_ext[j, near] = np.maximum(z_ext[j, near], zj[h])
+        coherent = np.flatnonzero(pj < F_ALPHA)
+        z_ext[j] = _spread(bins, coherent, zj[coherent], np.maximum)
         gate = np.flatnonzero((zj > Z_GATE) & (pj < F_GATE))
-        for h, p in zip(gate, joint_p(zj[gate], pj[gate]), strict=True):
-            near = _span(bins, bins[h])
-            lp_ext[j, near] = np.minimum(lp_ext[j, near], math.log10(p))
+        lp = np.array([math.log10(p) for p in joint_p(zj[gate], pj[gate])])
+        lp_ext[j] = _spread(bins, gate, lp, np.minimum)
     return z_ext, lp_ext
+
+
+def _spread(bins, at, values, op):
+    """Per bin of ``bins``: ``op`` (np.maximum or np.minimum) of 0 and the ``values`` of
+    those of ``at`` (sorted positions in ``bins``) whose span (:func:`_span`) holds it.
+
+    The spans' ends never decrease along ``at``, so the positions covering a bin are a
+    contiguous run of ``at``, reduced by a sparse table of ``op`` over ``values``: the same
+    numbers as reducing bin by bin (``op`` is exact), without a pass over a span per entry
+    (which took 56 of the 196 s of a 4e5-sample diagnosis).
+    """
+    out = np.zeros(bins.size)
+    if at.size == 0:
+        return out
+    lo = np.searchsorted(bins, bins[at] / NULL_SPAN)
+    hi = np.searchsorted(bins, bins[at] * NULL_SPAN, side="right")
+    i = np.arange(bins.size)
+    first = np.searchsorted(hi, i, side="right")  # the first entry whose span reaches past i
+    last = np.searchsorted(lo, i, side="right") - 1  # the last entry whose span starts by i
+    hit = first <= last
+    a, b = first[hit], last[hit]
+    table = [np.asarray(values, dtype=float)]
+    while 2 ** len(table) <= at.size:  # level l: op over values[k : k + 2**l]
+        prev, w = table[-1], 2 ** (len(table) - 1)
+        table.append(op(prev[:-w], prev[w:]))
+    level = np.floor(np.log2(b - a + 1)).astype(int)
+    best = np.empty(a.size)
+    for lv in np.unique(level):
+        sel = level == lv
+        t = table[lv]
+        best[sel] = op(t[a[sel]], t[b[sel] - 2**lv + 1])
+    out[hit] = op(0.0, best)
+    return out
 
 
 def _bounds(bins, z_ext, lp_ext):
