@@ -423,3 +423,22 @@ def test_peaks_of_the_dynamics_moved_by_a_timebase_are_not_lines():
         assert line_scan(real, sims[:6], 1.0, more_runs=more)[0] == []
         lines = line_scan(hum(real, 0.1, 0.3), sims[:6], 1.0, more_runs=more)[0]
         assert [round(line.frequency, 3) for line in lines] == [0.1]
+
+
+def test_the_runs_nulls_spread_over_their_spans_as_entry_by_entry():
+    """:func:`_lines._spread` (a sparse table over the entries) gives, bin by bin, what
+    reducing each entry's value over its span does, NaN included."""
+    rng = np.random.default_rng(5)
+    for trial in range(200):
+        nb = int(rng.integers(1, 300))
+        bins = np.sort(rng.choice(np.arange(1, 3000), size=nb, replace=False))
+        at = np.sort(rng.choice(nb, size=int(rng.integers(0, nb + 1)), replace=False))
+        values = rng.normal(size=at.size)
+        if trial % 5 == 0 and at.size:
+            values[rng.integers(at.size)] = np.nan
+        for op in (np.maximum, np.minimum):
+            want = np.zeros(nb)
+            for v, h in zip(values, at, strict=True):
+                near = _lines._span(bins, bins[h])
+                want[near] = op(want[near], v)
+            assert np.array_equal(_lines._spread(bins, at, values, op), want, equal_nan=True)
