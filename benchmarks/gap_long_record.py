@@ -9,7 +9,8 @@ the indicators, not of the forecast-error curves (their first 10^4 samples).
 
 ``--baseline REV`` also runs the package as of git revision ``REV``, exported
 with ``git archive`` into a temporary directory and run in a subprocess by this
-script, after the current one in the same run; the table gives both times, their
+script, after the current one in the same run (each first diagnoses a 6000-sample record
+untimed, which compiles the kernels); the table gives both times, their
 ratio and whether the two diagnoses read the same (best effect, its fitted
 parameters and the summary text).
 
@@ -49,6 +50,10 @@ def measure(sizes, n_jobs):
     from skdelay.systems import MackeyGlass
 
     warnings.simplefilter("ignore")
+    # untimed: compiles the kernels (a baseline exported to a fresh directory starts with
+    # an empty numba cache)
+    diagnose_gap(record(6000), MackeyGlass(), sample_dt="1 us", random_state=0,
+                 n_jobs=n_jobs)
     out = {}
     for n in sizes:
         real = record(n)
