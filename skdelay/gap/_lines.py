@@ -539,7 +539,8 @@ def _spread(bins, at, values, op):
     The spans' ends never decrease along ``at``, so the positions covering a bin are a
     contiguous run of ``at``, reduced by a sparse table of ``op`` over ``values``: the same
     numbers as reducing bin by bin (``op`` is exact), without a pass over a span per entry
-    (which took 56 of the 196 s of a 4e5-sample diagnosis).
+    (a 4e5-sample diagnosis spent 56 of its 196 s in :func:`_run_nulls`, most of it in those
+    passes and in locating each span on the whole scan).
     """
     out = np.zeros(bins.size)
     if at.size == 0:
