@@ -439,6 +439,6 @@ def test_the_runs_nulls_spread_over_their_spans_as_entry_by_entry():
         for op in (np.maximum, np.minimum):
             want = np.zeros(nb)
             for v, h in zip(values, at, strict=True):
-                near = _lines._span(bins, bins[h])
-                want[near] = op(want[near], v)
+                lo, hi = _lines._span(bins, bins[h])
+                want[lo:hi] = op(want[lo:hi], v)
             assert np.array_equal(_lines._spread(bins, at, values, op), want, equal_nan=True)

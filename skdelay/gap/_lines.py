@@ -545,8 +545,7 @@ def _spread(bins, at, values, op):
     out = np.zeros(bins.size)
     if at.size == 0:
         return out
-    lo = np.searchsorted(bins, bins[at] / NULL_SPAN)
-    hi = np.searchsorted(bins, bins[at] * NULL_SPAN, side="right")
+    lo, hi = _span(bins, bins[at])
     i = np.arange(bins.size)
     first = np.searchsorted(hi, i, side="right")  # the first entry whose span reaches past i
     last = np.searchsorted(lo, i, side="right") - 1  # the last entry whose span starts by i
@@ -584,9 +583,10 @@ def _bounds(bins, z_ext, lp_ext):
 
 
 def _span(bins, b):
-    """The slice of the sorted ``bins`` within NULL_SPAN of bin ``b``'s frequency."""
-    return slice(int(np.searchsorted(bins, b / NULL_SPAN)),
-                 int(np.searchsorted(bins, b * NULL_SPAN, side="right")))
+    """``(lo, hi)``: the positions ``lo:hi`` of the sorted ``bins`` within NULL_SPAN of the
+    frequency of bin ``b`` (an array of bins gives arrays)."""
+    return (np.searchsorted(bins, b / NULL_SPAN),
+            np.searchsorted(bins, b * NULL_SPAN, side="right"))
 
 
 def _beyond_runs(value, values):
