@@ -4,9 +4,9 @@ Prints a table:
 
 - Mackey-Glass (tau=17), 10**6 samples at sample step 1, integration step 0.05
   (RK4, 2*10**7 steps);
-- the three systems of the gap benchmark at its record length (Mackey-Glass,
-  Ikeda, the electro-optic oscillator at sample step 0.25), 2*10**4 samples with
-  their default transient: what one ensemble run of a gap diagnosis costs;
+- the four systems of the gap benchmark (Mackey-Glass, Ikeda, the electro-optic
+  oscillator at sample step 0.25, the CO2 laser at tau=150), 2*10**4 samples
+  with their default transient: what one ensemble run of a gap diagnosis costs;
 - the exact spectrum (20 exponents) of Mackey-Glass at tau=100;
 - the same integration with ``jitcdde`` (adaptive RK + Hermite history, C code)
   if it is installed, measured in the same run, with the speed ratio.
@@ -24,7 +24,7 @@ import warnings
 
 import numpy as np
 
-from skdelay.systems import ElectroOpticOscillator, Ikeda, MackeyGlass
+from skdelay.systems import CO2LaserFeedback, ElectroOpticOscillator, Ikeda, MackeyGlass
 
 
 def _time(func, repeat=1):
@@ -79,7 +79,8 @@ def main(argv=None):
 
     per_run = []
     for name, system, step in [("Mackey-Glass", mg, 1.0), ("Ikeda", Ikeda(), 1.0),
-                               ("electro-optic", ElectroOpticOscillator(), 0.25)]:
+                               ("electro-optic", ElectroOpticOscillator(), 0.25),
+                               ("CO2 laser tau=150", CO2LaserFeedback(tau=150.0), 1.0)]:
         system.simulate(10, sample_dt=step, random_state=0, transient=0)  # compile / load
         t_run, _ = _time(lambda s=system, h=step: s.simulate(20_000, sample_dt=h, random_state=1),
                          repeat=5)

@@ -183,6 +183,46 @@ def test_the_step_loop_is_compiled_without_reference_counts_on_this_numba():
     assert _integrate._advance.targetoptions.get("_nrt") is False
 
 
+def test_stack_work_arrays_have_the_asked_shape_and_hold_values():
+    """skdelay._jit.stack_array: C-ordered work arrays of constant shape on a kernel's
+    stack, usable where the kernel may not allocate (no runtime)."""
+    from skdelay._jit import plain_kernel, stack_array
+
+    @plain_kernel
+    def fill(out):
+        a = stack_array(3, 5, np.float64)
+        idx = stack_array(1, 4, np.int64)[0]
+        for i in range(3):
+            for j in range(5):
+                a[i, j] = 10.0 * i + j
+        for j in range(4):
+            idx[j] = 2 * j
+        out[0] = a.shape[0] * 100 + a.shape[1]
+        out[1] = a[2, 4] + a[1, 0]  # 24 + 10: rows are contiguous blocks of 5
+        out[2] = idx[3] + idx.shape[0]
+        return 0
+
+    out = np.zeros(3)
+    fill(out)
+    np.testing.assert_array_equal(out, [305.0, 34.0, 10.0])
+
+
+def test_the_kernels_are_sized_by_the_class_dim():
+    """The integrator's work arrays are sized at compile time by the dimension a system
+    class was defined with (its tag's DIM): an instance that changes ``dim`` is refused
+    with a message, not integrated with the wrong sizes."""
+    from skdelay.systems import _tags
+
+    assert CO2LaserFeedback._tag.DIM == 6 and MackeyGlass._tag.DIM == 1
+    assert "_6d_" in CO2LaserFeedback._tag.__name__
+    # a tag named by an older version (no dimension in the name) still unpickles
+    assert _tags.tag_class("Old_0123456789ab").DIM is None
+    lin = LinearDDE()
+    lin.dim = 2
+    with pytest.raises(ValueError, match="set dim as a class attribute"):
+        lin.simulate(10)
+
+
 def test_sample_dt_and_default_step():
     mg = MackeyGlass()
     fine = mg.simulate(400, sample_dt=0.5, random_state=0, transient=500)

@@ -175,7 +175,18 @@ class DelaySystem:
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
         if cls.__dict__.get("_rhs") is not None:
-            cls._tag = register(cls.__name__, cls._rhs, cls._jac)
+            cls._tag = register(cls.__name__, cls._rhs, cls._jac, cls.dim)
+
+    def _kernel_tag(self):
+        """The tag instance the kernels are compiled for (their work arrays are sized by the
+        class's ``dim`` when it was defined: :func:`._integrate.register`)."""
+        if self.dim != self._tag.DIM:
+            raise ValueError(
+                f"{type(self).__name__}.dim is {self.dim}, but the class was defined with "
+                f"dim = {self._tag.DIM}; set dim as a class attribute, not per instance "
+                "(the integrator is compiled for one state dimension per class)."
+            )
+        return self._tag(self.dim)
 
     def _choose_dt(self, sample_dt, dt):
         sample_dt = float(sample_dt)
@@ -294,7 +305,7 @@ class DelaySystem:
         p0 = self._vector(start)
         dp = self._vector(end) - p0
         p = p0.copy()
-        tag = self._tag(self.dim)
+        tag = self._kernel_tag()
         noise_scale = np.asarray(self.noise_scale, dtype=np.float64)
         noise_idx = np.flatnonzero(noise_scale).astype(np.int64)
         scale = noise * math.sqrt(dt) * noise_scale[noise_idx]
@@ -453,7 +464,7 @@ class DelaySystem:
                 f"(dim + tau/dt); ask for fewer exponents or use a smaller dt."
             )
         x, ring_big, counter = self._start(rng, tau, dt, params)
-        tag = self._tag(self.dim)
+        tag = self._kernel_tag()
         p = self._vector(params)
         l = self.feedback_index
         # trajectory transient with the simulation kernel, then hand over the history

@@ -3,7 +3,10 @@
 The numba kernels are specialised -- and cached on disk -- per tag type.  A
 tag class is named ``<System>_<hash of the source of rhs and jac>`` so that
 editing a system's equations changes its tag and invalidates the cached
-kernels (numba's cache alone only watches the kernel's own file).  Classes
+kernels (numba's cache alone only watches the kernel's own file); the name also
+carries the state dimension (``<System>_<dim>d_<hash>``), which the kernels
+read at compile time as the class attribute ``DIM`` to size their work
+arrays on the stack (:func:`skdelay._jit.stack_array`).  Classes
 are created on attribute access (PEP 562 ``__getattr__``), so unpickling a
 stale cache index that names an old tag never fails.
 """
@@ -15,6 +18,7 @@ from collections import namedtuple
 
 _CLASSES = {}
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*_[0-9a-f]{12}$")
+_DIM = re.compile(r"_([0-9]+)d_[0-9a-f]{12}$")
 
 
 def tag_class(name):
@@ -22,6 +26,8 @@ def tag_class(name):
     cls = _CLASSES.get(name)
     if cls is None:
         cls = namedtuple(name, ["dim"], module=__name__)
+        dim = _DIM.search(name)
+        cls.DIM = int(dim.group(1)) if dim else None  # None: a name from an older version
         _CLASSES[name] = cls
     return cls
 

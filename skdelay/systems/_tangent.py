@@ -16,7 +16,15 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ._integrate import delayed, next_slot, ring_stages, rk4_update, system_jac
+from .._jit import stack_array
+from ._integrate import (
+    delayed,
+    next_slot,
+    ring_stages,
+    rk4_update,
+    state_array,
+    system_jac,
+)
 
 
 @njit(cache=True)
@@ -72,14 +80,16 @@ def tangent_run(tag, x, ring, counter, l, p, dt, starts, weights, V, W, n_qr, qr
     d = x.shape[0]
     k_vec = V.shape[0]
     m_ring = ring.shape[0]
-    ks = np.empty((4, d))
-    xs = np.empty((4, d))
+    # the stages on the stack, where the compiler keeps them in registers (see
+    # skdelay.systems._integrate._advance); the Jacobians stay on the heap
+    ks = state_array(tag, 4)
+    xs = state_array(tag, 4)
     jx = np.empty((4, d, d))
-    jd = np.empty((4, d))
-    dks = np.empty((4, d))
-    dx = np.empty(d)
-    xd = np.empty(4)
-    ddel = np.empty(4)
+    jd = state_array(tag, 4)
+    dks = state_array(tag, 4)
+    dx = state_array(tag, 1)[0]
+    xd = stack_array(1, 4, np.float64)[0]
+    ddel = stack_array(1, 4, np.float64)[0]
     n = counter[0]
     slot = n % m_ring
     for _ in range(n_qr):
