@@ -645,3 +645,23 @@ def test_a_half_searches_the_delay_near_the_whole_records():
     width = delay.SEARCH_HALF_WIDTH * 0.5
     assert min(objective.seen) >= 16.3 - width - 1e-9
     assert max(objective.seen) <= 16.3 + width + 1e-9
+
+
+def test_costly_fits_are_handed_out_first_and_results_keep_the_candidates_order():
+    """The diagnosis hands the simulation fits to its workers before the cheap ones (a long
+    fit queued last runs alone at the end) and returns every result in its task's place."""
+    from skdelay.gap._diagnose import costly_first
+
+    handed = []
+
+    def parallel(tasks):
+        out = []
+        for name in tasks:
+            handed.append(name)
+            out.append(name.upper())
+        return out
+
+    tasks = ["hum", "noise", "drift", "clip", "delay"]
+    costly = [False, False, True, False, True]
+    assert costly_first(parallel, tasks, costly) == ["HUM", "NOISE", "DRIFT", "CLIP", "DELAY"]
+    assert handed == ["drift", "delay", "hum", "noise", "clip"]
