@@ -1,12 +1,12 @@
 """Type tags of the registered systems (namedtuple classes made on demand).
 
 The numba kernels are specialised -- and cached on disk -- per tag type.  A
-tag class is named ``<System>_<hash of the source of rhs and jac>`` so that
+tag class is named ``<System>_<dim>d_<hash of the source of rhs and jac>``:
 editing a system's equations changes its tag and invalidates the cached
-kernels (numba's cache alone only watches the kernel's own file); the name also
-carries the state dimension (``<System>_<dim>d_<hash>``), which the kernels
-read at compile time as the class attribute ``DIM`` to size their work
-arrays on the stack (:func:`skdelay._jit.stack_array`).  Classes
+kernels (numba's cache alone only watches the kernel's own file), and the
+kernels read the state dimension at compile time, as the class attribute
+``DIM``, to size their work arrays on the stack
+(:func:`skdelay._jit.stack_array`).  Classes
 are created on attribute access (PEP 562 ``__getattr__``), so unpickling a
 stale cache index that names an old tag never fails.
 """
