@@ -221,6 +221,10 @@ def test_the_kernels_are_sized_by_the_class_dim():
     lin.dim = 2
     with pytest.raises(ValueError, match="set dim as a class attribute"):
         lin.simulate(10)
+    # a class without a state is refused when it is defined
+    with pytest.raises(ValueError, match="dim must be a positive integer, got 0"):
+        type("NoState", (DelaySystem,), {"dim": 0, "_rhs": staticmethod(_linear_rhs),
+                                         "_jac": staticmethod(_linear_jac)})
 
 
 def test_sample_dt_and_default_step():
