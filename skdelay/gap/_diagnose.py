@@ -1967,6 +1967,9 @@ def _run(real, simulator, sample_dt, candidates, random_state, n_jobs, n_sims, c
     # a record whose only evidence is the dip: a delay fit stays within the dip's error
     # (DelayMismatch.search_bounds)
     problem.dip_only = bool(sig.get("dip_only"))
+    # what the record shows before any effect: whether a delay fit may leave the dip's
+    # window (DelayMismatch.ESCAPE_SIGNS)
+    problem.off_before = frozenset(off_indicators(problem, problem.before))
     gap_before = problem.before.gap
     parallel.step()
     parallel.start("candidate fits")

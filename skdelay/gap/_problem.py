@@ -321,6 +321,9 @@ class GapProblem:
     #: set by the diagnosis when the dip is the record's only significant discrepancy
     #: (a delay fit then stays within the dip's standard error)
     dip_only = False
+    #: set by the diagnosis: the indicators significantly off before any effect is added
+    #: (:func:`~skdelay.gap._diagnose.off_indicators`); ``None`` where nothing judged them
+    off_before = None
 
     def _scan_dips(self, scan=True, n_jobs=None):
         """Forecast-error dips of the real data and of the clean runs (step 1 near the dips).
