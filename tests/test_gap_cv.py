@@ -213,9 +213,19 @@ def test_a_drift_is_untested_when_one_half_holds_no_gap_of_its_own():
 
     quiet, loud = _Part(1.0, 0.5), _Part(1.2, 0.25)
     quiet.before = SimpleNamespace(gap=1.0)
-    effects = [_Level(), _AnchoredLevel()]
+
+    class Counted(_AnchoredLevel):
+        fits = 0
+
+        def search(self, problem, guess, objective):
+            Counted.fits += 1
+            return guess
+
+    effects = [_Level(), Counted()]
     _, scores, _ = cross_validate(effects, (quiet, loud), Parallel(n_jobs=1))
     assert "anchored_level" not in scores
+    assert Counted.fits == 0  # a fold that cannot test the drift is not even fitted
+    effects = [_Level(), _AnchoredLevel()]
     assert scores["level_shift"][1] == ({"level": 1.0}, {"level": 1.2})
     loud_pair = (_Part(1.0, 0.5), _Part(1.2, 0.25))
     _, scores, _ = cross_validate(effects, loud_pair, Parallel(n_jobs=1))
