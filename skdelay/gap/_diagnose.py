@@ -970,10 +970,10 @@ def cross_validate(effects, parts, parallel, chain=()):
             params[fit] = res.params if res.ok else None
             b += redrawn[f] if getattr(eff, "target", "") == "simulation" else before[f]
             n, tested = n + null[f], True
-            if not (res.ok and np.isfinite(gap)):  # failed on a half, fitting or held out
+            if not res.ok or np.isnan(gap):  # failed on a half, fitting or held out
                 failed = True
                 continue
-            after += gap
+            after += gap  # an infinite gap stays in the sum, as it did when scored here
         if not tested:
             continue  # no fold could test it: the candidate stays uncross-validated
         out[name] = (np.nan if failed else after, tuple(params), b, n)
