@@ -155,6 +155,38 @@ def test_seeded_runs_are_reproduced_across_versions(system, kwargs, values):
     np.testing.assert_allclose(x[[0, 999, 1999]], values, rtol=1e-12, atol=0)
 
 
+#: runs made one after another with one seed: each shares its transient with an earlier
+#: one or must not (other noise, start parameters, step, delay or transient)
+SHARED_TRANSIENTS = [
+    (800, {}), (300, {}), (600, {"n": (10.0, 11.0)}), (600, {"n": 11.0}),
+    (400, {"dynamical_noise": 0.01}), (900, {"dynamical_noise": 0.01}),
+    (400, {"dynamical_noise": 0.02}), (500, {"sample_dt": 0.5}), (500, {"tau": (17.0, 20.0)}),
+    (500, {"tau": 18.0}), (500, {"transient": 300.0}), (500, {"dt": 0.025}),
+]
+
+
+def test_runs_that_share_a_seed_reuse_its_transient_bit_for_bit():
+    """A seeded run continues from the stored state after its transient when an earlier run
+    had the same one: every run equals the same run with no stored state.  A state served
+    to a run it does not belong to (a key that forgets the noise, the start parameters,
+    the step or the delay) gives another chaotic run, so the comparison fails."""
+    from skdelay.systems import _base
+
+    mg = MackeyGlass(tau=17.0)
+    _base._SETTLED.__init__(_base._SETTLED.max_bytes)
+    hits = _base._SETTLED.hits
+    shared = [mg.simulate(n, random_state=11, **kw) for n, kw in SHARED_TRANSIENTS]
+    assert _base._SETTLED.hits - hits >= 3  # 300 after 800, 600 and 900 samples
+    for (n, kw), x in zip(SHARED_TRANSIENTS, shared):
+        _base._SETTLED.__init__(_base._SETTLED.max_bytes)
+        np.testing.assert_array_equal(x, mg.simulate(n, random_state=11, **kw), err_msg=str(kw))
+    # a shorter run is the start of a longer one with the same seed
+    np.testing.assert_array_equal(shared[1], shared[0][:300])
+    # seeded by a RandomState instead of an integer: integrated anew, the same run
+    np.testing.assert_array_equal(mg.simulate(800, random_state=np.random.RandomState(11)),
+                                  shared[0])
+
+
 def _quietest_stretch(x, width=500):
     """Smallest standard deviation of a ``width``-sample stretch over the median one."""
     s = np.array([x[i:i + width].std() for i in range(0, x.size, width)])

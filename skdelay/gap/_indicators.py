@@ -22,7 +22,7 @@ import hashlib
 import numpy as np
 from scipy import signal
 
-from ._memo import BoundedStore
+from .._memo import BoundedStore
 from ._signature import mean_std, zscore
 
 #: z-scores are capped at this value so that one bin cannot dominate a gap.

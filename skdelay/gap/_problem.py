@@ -15,6 +15,7 @@ import numpy as np
 from joblib import Parallel, delayed
 
 from .._checks import check_random_state
+from .._memo import BoundedStore
 from ._effects import (
     HISTORY,
     SAMPLING_FACTOR,
@@ -32,7 +33,6 @@ from ._indicators import (
     zscores,
 )
 from ._lines import CALIBRATION_RUNS, line_scan, spectrum_view
-from ._memo import BoundedStore
 from ._signature import zscore
 from ._where import DIP_DEPTH_RATIO, DIP_Z, dip_window
 

@@ -1,7 +1,8 @@
-"""A bounded, thread-safe store of arrays for reuse within one diagnosis.
+"""A bounded, thread-safe store of arrays for reuse within one process.
 
 One home for the bookkeeping of :class:`~skdelay.gap._problem.RunCache` (simulator
-runs) and :class:`~skdelay.gap._indicators.FeatureCache` (indicator profiles): least
+runs), :class:`~skdelay.gap._indicators.FeatureCache` (indicator profiles) and the delay
+systems' settled states (:mod:`skdelay.systems._base`): least
 recently used entries leave first once more than ``max_bytes`` are held, hits and misses
 are counted, and the store is not pickled (a joblib worker starts with an empty one:
 shipping it with every task would cost more than it saves).  What is stored is the
