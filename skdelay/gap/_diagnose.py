@@ -819,9 +819,9 @@ def _simulated(effect):
     return getattr(effect, "target", "") == "simulation"
 
 
-def costly_first(parallel, tasks, costly):
+def costly_first(parallel, tasks, costly, meanwhile=None):
     """``parallel(tasks)`` with the ``costly`` tasks handed out first; results in the
-    order of ``tasks``.
+    order of ``tasks`` (and ``meanwhile``'s result: see :meth:`_Stages.__call__`).
 
     Workers take tasks in the order given, so a long fit queued behind short ones starts
     late and runs alone at the end.  CO2 laser with a hum (4e4 samples, 2 workers): the
@@ -831,9 +831,13 @@ def costly_first(parallel, tasks, costly):
     """
     order = sorted(range(len(tasks)), key=lambda i: not costly[i])  # stable
     out = [None] * len(tasks)
-    for i, res in zip(order, parallel(tasks[i] for i in order)):
+    if meanwhile is None:
+        done = parallel(tasks[i] for i in order)
+    else:
+        done, extra = parallel((tasks[i] for i in order), meanwhile=meanwhile)
+    for i, res in zip(order, done):
         out[i] = res
-    return out
+    return out if meanwhile is None else (out, extra)
 
 
 def _worth_cv(results, gap_before):
@@ -1918,23 +1922,28 @@ class _Stages:
             self.bar.total = self.bar.n
             self.bar.refresh()
 
-    def __call__(self, jobs):
+    def __call__(self, jobs, meanwhile=None):
+        """The jobs' results in order; with ``meanwhile`` (a function), ``(results, its
+        result)``: the calling process runs it once the jobs are handed out, while the
+        workers work (and otherwise it would wait for them)."""
         jobs = list(jobs)
         if len(jobs) > self.left:
             self.bar.total += len(jobs) - self.left
             self.left = len(jobs)
-        if not self.live:
+        if not self.live and meanwhile is None:
             out = self.parallel(jobs)
             self.step(len(jobs))
             return out
         if self._lazy is None:  # results as they finish, in order: the bar moves per fit
             self._lazy = Parallel(n_jobs=self.n_jobs, verbose=self.verbose,
                                   return_as="generator")
+        results = self._lazy(jobs)  # handed out now, collected below
+        extra = meanwhile() if meanwhile is not None else None
         out = []
-        for res in self._lazy(jobs):
+        for res in results:
             out.append(res)
             self.step()
-        return out
+        return out if meanwhile is None else (out, extra)
 
 
 def _diagnose(real, simulator, *, sample_dt, effects, random_state, n_jobs, n_sims, combine,
@@ -1982,7 +1991,6 @@ def _run(real, simulator, sample_dt, candidates, random_state, n_jobs, n_sims, c
         raise ValueError(
             f"the simulator fails with its own parameters, so there is nothing to compare: {exc}"
         ) from exc
-    where = localise(problem)
     sig = significance(problem, parallel)
     # a record whose only evidence is the dip: a delay fit stays within the dip's error
     # (DelayMismatch.search_bounds)
@@ -1993,10 +2001,17 @@ def _run(real, simulator, sample_dt, candidates, random_state, n_jobs, n_sims, c
     gap_before = problem.before.gap
     parallel.step()
     parallel.start("candidate fits")
-    results = costly_first(parallel, [delayed(fit_effect)(e, problem) for e in candidates],
-                           [_simulated(e) for e in candidates])
+
+    def meanwhile():
+        # the calling process's own work, done while the workers fit: where the record
+        # differs, and the halves of the cross-validation (2-3 s of a 4e4-sample record)
+        parts = problem.split() if (cross_validated and real.size >= MIN_CV_SAMPLES) else None
+        return localise(problem), parts
+
+    results, (where, parts) = costly_first(
+        parallel, [delayed(fit_effect)(e, problem) for e in candidates],
+        [_simulated(e) for e in candidates], meanwhile=meanwhile)
     by_name = {e.name: e for e in candidates}
-    parts = problem.split() if (cross_validated and real.size >= MIN_CV_SAMPLES) else None
     cv = None
     # a record whose only significant discrepancy is the forecast-error dip is not split:
     # the halves take the whole record's dip (they cannot place their own), and the rest of
