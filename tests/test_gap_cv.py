@@ -675,3 +675,54 @@ def test_costly_fits_are_handed_out_first_and_results_keep_the_candidates_order(
     costly = [False, False, True, False, True]
     assert costly_first(parallel, tasks, costly) == ["HUM", "NOISE", "DRIFT", "CLIP", "DELAY"]
     assert handed == ["drift", "delay", "hum", "noise", "clip"]
+
+
+def test_the_calling_process_works_while_the_tasks_run_and_gets_its_result():
+    """``meanwhile`` runs once the fits are handed out (the workers fit while the calling
+    process splits the record) and its result comes back beside the fits', which keep
+    their order."""
+    from skdelay.gap._diagnose import _Stages, costly_first
+
+    events = []
+
+    class Bar:
+        total, n = None, 0
+
+        def set_postfix_str(self, s):
+            pass
+
+        def update(self, n=1):
+            pass
+
+    stages = _Stages(Bar(), [("candidate fits", 3)], n_jobs=1, verbose=0)
+    stages.start("candidate fits")
+
+    def task(name):
+        events.append(name)
+        return name.upper()
+
+    from joblib import delayed
+
+    def meanwhile():
+        events.append("meanwhile")
+        return 42
+
+    tasks = [delayed(task)(n) for n in ("hum", "drift", "clip", "noise")]
+    out, extra = costly_first(stages, tasks, [False, True, False, False], meanwhile=meanwhile)
+    assert out == ["HUM", "DRIFT", "CLIP", "NOISE"] and extra == 42
+    # handed out costly first; the calling process's work done once (one worker: before
+    # the tasks, which a sequential joblib runs as their results are collected)
+    assert [e for e in events if e != "meanwhile"] == ["drift", "hum", "clip", "noise"]
+    assert events.count("meanwhile") == 1
+
+
+def test_the_record_s_dip_scan_in_a_thread_gives_the_same_dip():
+    """With more than one core the record's own dip scan runs in a thread beside the line
+    scan; the curves and the dip are those of the scan in the calling process."""
+    real = MG.simulate(6000, random_state=7105)
+    one = GapProblem(real, MG, n_sims=3, random_state=0, n_jobs=1)
+    two = GapProblem(real, MG, n_sims=3, random_state=0, n_jobs=2)
+    for a, b in zip(one.dip_curves, two.dip_curves):
+        np.testing.assert_array_equal(a, b)
+    assert one.dip_real == two.dip_real and one.dip_spread == two.dip_spread
+    assert one._start_real_scan(True, 1) is None and two._start_real_scan(True, 2) is not None
