@@ -31,7 +31,7 @@ _MAX_STEPS = 10_000_000_000
 #: a-priori amplitude used when a system declares none
 _DEFAULT_SCALE = 1e6
 #: states of seeded runs after their transient, kept per process for the runs that share
-#: them (see :meth:`DelaySystem.simulate`); 24 MiB hold about 130 states of the CO2 laser
+#: them (see :meth:`DelaySystem.simulate`); 24 MiB hold about 150 states of the CO2 laser
 #: at tau = 400 (20 000 history steps each), more than a gap diagnosis's seeds.  Not
 #: pickled: a joblib worker fills its own, and keeps it from task to task.
 _SETTLED = BoundedStore(24 * 2**20)
