@@ -658,9 +658,11 @@ def test_a_half_searches_the_delay_near_the_whole_records():
 
 
 def test_costly_fits_are_handed_out_first_and_results_keep_the_candidates_order():
-    """The diagnosis hands the simulation fits to its workers before the cheap ones (a long
-    fit queued last runs alone at the end) and returns every result in its task's place."""
-    from skdelay.gap._diagnose import costly_first
+    """The diagnosis hands the simulation fits to its workers before the cheap ones, the
+    longest first (a long fit queued last runs alone at the end), and returns every result
+    in its task's place."""
+    from skdelay.gap import EFFECTS
+    from skdelay.gap._diagnose import _fit_cost, costly_first
 
     handed = []
 
@@ -671,10 +673,13 @@ def test_costly_fits_are_handed_out_first_and_results_keep_the_candidates_order(
             out.append(name.upper())
         return out
 
-    tasks = ["hum", "noise", "drift", "clip", "delay"]
-    costly = [False, False, True, False, True]
-    assert costly_first(parallel, tasks, costly) == ["HUM", "NOISE", "DRIFT", "CLIP", "DELAY"]
-    assert handed == ["drift", "delay", "hum", "noise", "clip"]
+    tasks = ["hum", "noise", "delay", "clip", "drift"]
+    costs = [_fit_cost(EFFECTS[name]()) for name in (
+        "periodic_interference", "dynamical_noise", "delay_mismatch", "clipping",
+        "parameter_drift")]
+    assert costs == [0.0, 1.0, 1.0, 0.0, 2.0]
+    assert costly_first(parallel, tasks, costs) == ["HUM", "NOISE", "DELAY", "CLIP", "DRIFT"]
+    assert handed == ["drift", "noise", "delay", "hum", "clip"]
 
 
 def test_the_calling_process_works_while_the_tasks_run_and_gets_its_result():
@@ -708,7 +713,7 @@ def test_the_calling_process_works_while_the_tasks_run_and_gets_its_result():
         return 42
 
     tasks = [delayed(task)(n) for n in ("hum", "drift", "clip", "noise")]
-    out, extra = costly_first(stages, tasks, [False, True, False, False], meanwhile=meanwhile)
+    out, extra = costly_first(stages, tasks, [0.0, 1.0, 0.0, 0.0], meanwhile=meanwhile)
     assert out == ["HUM", "DRIFT", "CLIP", "NOISE"] and extra == 42
     # handed out costly first; the calling process's work done once (one worker: before
     # the tasks, which a sequential joblib runs as their results are collected)

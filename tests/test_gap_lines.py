@@ -403,6 +403,25 @@ def test_more_calibration_runs_are_drawn_only_when_the_runs_null_can_decide():
     assert calls == [_lines.CALIBRATION_RUNS - 6] * 2
 
 
+def test_threads_give_the_same_scan_to_the_last_bit():
+    """The runs' spectra and their leave-one-out nulls on threads are the same numbers as
+    one by one: the same lines, hints and start, and the same calibration arrays."""
+    plain = [_white(s) + _sine(0.2 + 0.01 * s, 0.05) for s in range(1, 7)]
+    extra = [_white(100 + s) for s in range(_lines.CALIBRATION_RUNS - 6)]
+    real = _white(10) + _sine(0.08, 0.2) + _sine(0.31, 0.04)
+    scans = [_lines.line_scan(real, plain, 1.0, more_runs=lambda k: extra[:k], threads=t)
+             for t in (1, 2, 5)]
+    assert scans[0][0] and scans[1] == scans[0] and scans[2] == scans[0]
+    runs = [_lines.zscore(x) for x in plain + extra]
+    serial = _lines._run_spectra(runs, runs[0].size)
+    threaded = _lines._run_spectra(runs, runs[0].size, threads=3)
+    assert all(np.array_equal(a, b) for a, b in zip(serial, threaded, strict=True))
+    bins = np.arange(8, serial[2].shape[1] - _lines.PAD)
+    nulls = [_lines._run_nulls(bins, serial[2], serial[1], threads=t) for t in (1, 2)]
+    assert all(np.array_equal(a, b) for a, b in zip(*nulls, strict=True))
+    assert nulls[0][0].shape == (len(runs), bins.size) and np.any(nulls[0][0] > 0)
+
+
 def test_peaks_of_the_dynamics_moved_by_a_timebase_are_not_lines():
     """A clock 6 % off moves every sharp peak of Mackey-Glass' spectrum by 6 %: the record
     has peaks where the runs have none and lacks theirs next to them.  Judged bin by bin,

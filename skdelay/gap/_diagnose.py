@@ -814,14 +814,19 @@ MIN_CV_SAMPLES = 2 * MIN_SAMPLES
 CV_MIN_FIT_SHRINK = MIN_SHRINK - 0.2
 
 
-def _simulated(effect):
-    """Does fitting ``effect`` re-run the simulator (the costly fits)?"""
-    return getattr(effect, "target", "") == "simulation"
+def _fit_cost(effect):
+    """The effect's :attr:`~skdelay.gap.Effect.fit_cost`: 1 for a fit that re-runs the
+    simulator, 0 for one that does not, unless the effect says otherwise."""
+    cost = getattr(effect, "fit_cost", None)
+    if cost is None:
+        return 1.0 if getattr(effect, "target", "") == "simulation" else 0.0
+    return float(cost)
 
 
-def costly_first(parallel, tasks, costly, meanwhile=None):
-    """``parallel(tasks)`` with the ``costly`` tasks handed out first; results in the
-    order of ``tasks`` (and ``meanwhile``'s result: see :meth:`_Stages.__call__`).
+def costly_first(parallel, tasks, costs, meanwhile=None):
+    """``parallel(tasks)`` with the costliest tasks (``costs``, one number each) handed out
+    first; results in the order of ``tasks`` (and ``meanwhile``'s result: see
+    :meth:`_Stages.__call__`).
 
     Workers take tasks in the order given, so a long fit queued behind short ones starts
     late and runs alone at the end.  CO2 laser with a hum (4e4 samples, 2 workers): the
@@ -829,7 +834,7 @@ def costly_first(parallel, tasks, costly, meanwhile=None):
     queued 9th and 7th of 10, and the round took 46 s.  The fits are independent, so
     the order changes no result.
     """
-    order = sorted(range(len(tasks)), key=lambda i: not costly[i])  # stable
+    order = sorted(range(len(tasks)), key=lambda i: -float(costs[i]))  # stable
     out = [None] * len(tasks)
     if meanwhile is None:
         done = parallel(tasks[i] for i in order)
@@ -950,7 +955,7 @@ def cross_validate(effects, parts, parallel, chain=()):
     # beside the long fits instead of waiting for all of them first (CO2 laser with a hum,
     # 4e4 samples, 2 workers: the draws were a call of 3.8 s of their own)
     done = costly_first(parallel, [delayed(_fold)(e, parts, f, chain) for e, f in jobs]
-                        + draws, [_simulated(e) for e, _ in jobs] + [False] * len(draws))
+                        + draws, [_fit_cost(e) for e, _ in jobs] + [0.0] * len(draws))
     fits, fresh = done[:len(jobs)], done[len(jobs):]
     for i, f in enumerate(live if redraw else []):
         drawn = [before[f], *fresh[i * REPLICATES:(i + 1) * REPLICATES]]
@@ -1271,7 +1276,7 @@ def _second_round(problem, candidates, by_name, chain, after, parallel, cv, part
     if not others:
         return None, None, False
     more = costly_first(parallel, [delayed(fit_effect)(e, problem, chain) for e in others],
-                        [_simulated(e) for e in others])
+                        [_fit_cost(e) for e in others])
     cv2 = None
     if cv is not None:
         best_on_half = cv[1].get(best, (np.nan, (None, None)))[1]
@@ -2010,7 +2015,7 @@ def _run(real, simulator, sample_dt, candidates, random_state, n_jobs, n_sims, c
 
     results, (where, parts) = costly_first(
         parallel, [delayed(fit_effect)(e, problem) for e in candidates],
-        [_simulated(e) for e in candidates], meanwhile=meanwhile)
+        [_fit_cost(e) for e in candidates], meanwhile=meanwhile)
     by_name = {e.name: e for e in candidates}
     cv = None
     # a record whose only significant discrepancy is the forecast-error dip is not split:

@@ -191,6 +191,11 @@ class Effect:
     #: part spans), fitting a later part on a ramp through the record's start
     anchored_at_start = False
     fits_anchored_parts = False
+    #: how long one fit takes against a simulation effect's 1-D search (None: 1 for a
+    #: simulation effect, 0 for an observation effect, which re-runs no simulator).  A
+    #: scheduling hint only: a diagnosis hands the longest fits to its workers first, so
+    #: that none starts late and runs alone at the end; no result depends on it
+    fit_cost = None
 
     def line_frequencies(self, params):
         """Frequencies (cycles per time unit) of the only spectral lines this effect adds, or

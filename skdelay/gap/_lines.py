@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import functools
 import math
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -192,7 +193,7 @@ def find_lines(real, sims, sample_dt, *, max_lines=5):
 MAX_HINTS = 3
 
 
-def line_scan(real, sims, sample_dt, *, max_lines=5, more_runs=None):
+def line_scan(real, sims, sample_dt, *, max_lines=5, more_runs=None, threads=1):
     """``(lines, hints, start)``: the spectral lines of ``real`` that the simulated runs
     ``sims`` lack (strongest first), up to :data:`MAX_HINTS` sub-threshold candidates, and
     the record's most coherent bin (a starting point of a hum fit only).
@@ -223,6 +224,10 @@ def line_scan(real, sims, sample_dt, *, max_lines=5, more_runs=None):
         passes the family-wise bounds alone, or some run alone passes the
         tests: :class:`_Calibration`), to bring the ensemble the tests are
         calibrated on to :data:`CALIBRATION_RUNS`.
+    threads : int, default=1
+        Threads for the runs' spectra and their leave-one-out calibration, one
+        run per task (numpy's transforms release the GIL).  The result does not
+        depend on it.
 
     Returns
     -------
@@ -251,14 +256,14 @@ def line_scan(real, sims, sample_dt, *, max_lines=5, more_runs=None):
     coef = eigencoefficients(z)
     real_raw = log_power(coef)
     real_log = narrow_excess(real_raw)
-    raws, run_pf, logs = _run_spectra(runs, n)
+    raws, run_pf, logs = _run_spectra(runs, n, threads)
     f_stat, p_f, _ = harmonic_f(coef, n)
     lo = math.ceil(MIN_CYCLES * PAD)
     scan = np.arange(lo, real_log.size - PAD)  # the Nyquist bin carries no phase
     # calibration: how far does one simulator run stick out of the others near each bin, at
     # bins that also pass the F-test?  (a chaotic run's sharp peaks are the simulator's
     # variability there)
-    cal = _Calibration(scan, logs, raws, run_pf)
+    cal = _Calibration(scan, logs, raws, run_pf, threads)
     # more runs when the tests could flag a bin at all (against the Gaussian bounds alone)
     # or some run alone passes them: only then does the runs' null decide
     if more_runs is not None and len(runs) < CALIBRATION_RUNS and (
@@ -266,10 +271,10 @@ def line_scan(real, sims, sample_dt, *, max_lines=5, more_runs=None):
                                  null=False)[0].any()):
         extra = [zscore(np.asarray(s, dtype=float)[:n])
                  for s in more_runs(CALIBRATION_RUNS - len(runs))]
-        more = _run_spectra(extra, n)
+        more = _run_spectra(extra, n, threads)
         raws, run_pf, logs = (np.vstack([a, b]) for a, b in zip((raws, run_pf, logs), more,
                                                                  strict=True))
-        cal = _Calibration(scan, logs, raws, run_pf)
+        cal = _Calibration(scan, logs, raws, run_pf, threads)
     flagged, z_real, joint, low, z_low = _flags(scan, real_log, real_raw, p_f, logs, raws,
                                                 cal)
     family = cal.family
@@ -473,13 +478,33 @@ CALIBRATION_RUNS = 24
 BOUND_RUNS = 12
 
 
-def _run_spectra(runs, n):
+def _thread_map(fn, items, threads):
+    """``[fn(item) for item in items]``, on up to ``threads`` threads: the same numbers
+    either way (each item is computed alone, by the same operations).
+
+    The line scan's per-run work is numpy transforms, reductions and running medians that
+    release the GIL, and it runs while the diagnosis's workers wait for the scan's
+    verdict: CO2 laser with a hum (4e4 samples, 24 runs), the runs' spectra 1.17 -> 0.55 s
+    and their leave-one-out nulls 0.89 -> 0.59 s on 2 threads.
+    """
+    items = list(items)
+    if threads <= 1 or len(items) < 2:
+        return [fn(item) for item in items]
+    with ThreadPoolExecutor(max_workers=min(int(threads), len(items)),
+                            thread_name_prefix="skdelay-lines") as pool:
+        return list(pool.map(fn, items))
+
+
+def _run_spectra(runs, n, threads=1):
     """``(raws, p_F, narrow excess)`` per run: each run's tapered DFTs once, for both
-    families' calibration."""
-    coefs = [eigencoefficients(r) for r in runs]
-    raws = np.array([log_power(c) for c in coefs])
-    run_pf = np.array([harmonic_f(c, n)[1] for c in coefs])
-    return raws, run_pf, np.array([narrow_excess(raw) for raw in raws])
+    families' calibration (``threads``: see :func:`_thread_map`)."""
+    def one(run):
+        coef = eigencoefficients(run)
+        raw = log_power(coef)
+        return raw, harmonic_f(coef, n)[1], narrow_excess(raw)
+
+    done = _thread_map(one, runs, threads)
+    return tuple(np.array([row[i] for row in done]) for i in range(3))
 
 
 class _Calibration:
@@ -489,17 +514,17 @@ class _Calibration:
     run alone passes a test of either family against the others, so the runs are too few to
     show the simulator's variability (the nulls are then extreme values of a heavy tail)."""
 
-    def __init__(self, scan, logs, raws, run_pf):
+    def __init__(self, scan, logs, raws, run_pf, threads=1):
         # the padded grid is oversampled PAD-fold: scan.size / PAD independent bins
         self.family = LINE_ALPHA * PAD / scan.size
-        z_ext, lp_ext = _run_nulls(scan, logs, run_pf)
+        z_ext, lp_ext = _run_nulls(scan, logs, run_pf, threads)
         self.z, self.p = _bounds(scan, z_ext, lp_ext)
         outrun = _passes(z_ext, lp_ext, self.family)
         low = scan < int(CONTINUUM * NW * PAD)
         self.low = low if np.count_nonzero(low) >= PAD and raws.shape[0] >= 3 else None
         if self.low is not None:
             self.low_family = LINE_ALPHA * PAD / np.count_nonzero(low)
-            z_ext, lp_ext = _run_nulls(scan[low], raws, run_pf)
+            z_ext, lp_ext = _run_nulls(scan[low], raws, run_pf, threads)
             self.low_z, self.low_p = _bounds(scan[low], z_ext, lp_ext)
             outrun = outrun or _passes(z_ext, lp_ext, self.low_family)
         self.outrun = bool(outrun)
@@ -512,24 +537,26 @@ def _passes(z_ext, lp_ext, family):
                 or lp_ext.min(initial=0.0) < math.log10(family))
 
 
-def _run_nulls(bins, logs, run_pf):
+def _run_nulls(bins, logs, run_pf, threads=1):
     """Leave-one-out calibration of the line tests at each of ``bins`` (padded-grid
     indices): ``(z, p)``.  Per run, the largest z against the others among its coherent bins
     (harmonic-F p below F_ALPHA) and the smallest combined p among its gated bins (z above
     Z_GATE, p_F below F_GATE) within NULL_SPAN of each bin's frequency (0 and 1 where it has
     none); over the runs, the one-sided prediction bounds of those extremes (on log10 p) at
-    NULL_ALPHA per span: where the next run's extreme would lie but for chance."""
-    runs = logs.shape[0]
-    z_ext, lp_ext = np.zeros((runs, bins.size)), np.zeros((runs, bins.size))
-    for j in range(runs):
+    NULL_ALPHA per span: where the next run's extreme would lie but for chance
+    (``threads``: see :func:`_thread_map`)."""
+    def one(j):
         zj = _zmap(logs[j], np.delete(logs, j, axis=0))[bins]
         pj = run_pf[j][bins]
         coherent = np.flatnonzero(pj < F_ALPHA)
-        z_ext[j] = _spread(bins, coherent, zj[coherent], np.maximum)
         gate = np.flatnonzero((zj > Z_GATE) & (pj < F_GATE))
         lp = np.array([math.log10(p) for p in joint_p(zj[gate], pj[gate])])
-        lp_ext[j] = _spread(bins, gate, lp, np.minimum)
-    return z_ext, lp_ext
+        return (_spread(bins, coherent, zj[coherent], np.maximum),
+                _spread(bins, gate, lp, np.minimum))
+
+    done = _thread_map(one, range(logs.shape[0]), threads)
+    return (np.array([z for z, _ in done]).reshape(-1, bins.size),
+            np.array([lp for _, lp in done]).reshape(-1, bins.size))
 
 
 def _spread(bins, at, values, op):

@@ -251,7 +251,8 @@ class GapProblem:
         # and sub-threshold candidates, where a hum fit may also start (_lines.line_scan)
         if lines is None:
             self.lines, self.line_hints, self.line_start = line_scan(
-                real, runs, self.sample_dt, more_runs=self._line_runs(n_jobs))
+                real, runs, self.sample_dt, more_runs=self._line_runs(n_jobs),
+                threads=effective_n_jobs(n_jobs))
         else:
             self.lines, self.line_hints = list(lines), list(line_hints or [])
             self.line_start = line_start
