@@ -64,6 +64,36 @@ def test_the_cache_keeps_its_byte_budget_and_is_not_pickled():
     assert clone.max_bytes == cache.max_bytes and len(clone) == 0
 
 
+def test_copies_unpickled_in_one_worker_share_their_diagnosis_runs_and_no_other():
+    """A task's copy of the cache (unpickled in a joblib worker) joins the worker's store:
+    a later task of the same diagnosis finds the runs an earlier one made, as the tasks of
+    one process do, while a cache of another diagnosis never sees them; the worker's store
+    keeps its byte budget for all of them together."""
+    from skdelay import _memo
+
+    sim = CountingSimulator()
+    cache, other = RunCache(max_bytes=4 * 8 * 100), RunCache(max_bytes=4 * 8 * 100)
+    saved = dict(_memo._JOINED)
+    _memo._JOINED.pop(RunCache, None)  # a fresh worker
+    try:
+        first, second = (pickle.loads(pickle.dumps(cache)) for _ in range(2))
+        a = first.run(sim, 100, 1.0, 3, {"gain": 0.5})
+        b = second.run(sim, 100, 1.0, 3, {"gain": 0.5})
+        assert sim.calls == 1 and np.array_equal(a, b) and a is not b
+        assert len(first) == len(second) == 1 and len(cache) == 0  # the owner's stays its own
+        stranger = pickle.loads(pickle.dumps(other))
+        c = stranger.run(sim, 100, 1.0, 3, {"gain": 0.5})
+        assert sim.calls == 2 and np.array_equal(a, c) and len(stranger) == 1
+        for seed in range(10, 16):
+            stranger.run(sim, 100, 1.0, seed, {})
+        host = _memo._JOINED[RunCache]
+        assert host._bytes <= host.max_bytes and len(host._items) == 4
+        assert len(first) == 0  # the oldest went first, whichever diagnosis made them
+    finally:
+        _memo._JOINED.clear()
+        _memo._JOINED.update(saved)
+
+
 def test_the_halves_of_a_split_reuse_the_whole_records_runs():
     mg = MackeyGlass()
     real = mg.simulate(4000, random_state=5)

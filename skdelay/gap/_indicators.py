@@ -708,14 +708,17 @@ class FeatureCache(BoundedStore):
     indicator's name, ``blocks`` and a digest of the values: valid for one set of
     indicators only (a :class:`~skdelay.gap._problem.GapProblem` and its reseeded twins,
     which share them; the halves of a split set up their own).  Stored arrays are
-    read-only and copied out by :func:`profiles`.  At most ``MAX_BYTES``; not pickled.
+    read-only and copied out by :func:`profiles`.  At most ``MAX_BYTES``; the profiles are
+    not pickled, and a copy unpickled in a joblib worker joins the worker's store of this
+    set of indicators (:mod:`skdelay._memo`, ``shared``): a run the worker's run cache
+    serves again to a later task is not profiled again either.
     """
 
     #: bytes kept (a profile is at most a few thousand bins)
     MAX_BYTES = 64 * 2**20
 
     def __init__(self, max_bytes=MAX_BYTES):
-        super().__init__(max_bytes)
+        super().__init__(max_bytes, shared=True)
 
     @staticmethod
     def digest(z):

@@ -74,15 +74,20 @@ class RunCache(BoundedStore):
     A run is a deterministic function of its key (``simulate`` is seeded), so a hit gives
     the same numbers as a new run.  Entries are copies and every hit is a copy: an effect
     that changes its input in place cannot alter a stored run.  At most ``max_bytes`` are
-    kept, least recently used first out.  The cache is not pickled (a joblib worker starts
-    with an empty one): shipping it with every task would cost more than it saves.
+    kept, least recently used first out.  The runs are not pickled (shipping them with
+    every task would cost more than it saves); a copy unpickled in a joblib worker joins
+    the worker's store of this diagnosis's runs (:mod:`skdelay._memo`, ``shared``), so the
+    tasks a worker runs one after another share them as the tasks of one process do.  CO2
+    laser with a hum, 4e4 samples, 2 workers: 553 runs against 499 with one worker, 28 of
+    them repeating a run the same worker had made for an earlier task (a cross-validation
+    fold's noise ladder and grid, the fresh ensembles of the two halves).
     """
 
     #: bytes kept (about 800 runs of 4e4 samples)
     MAX_BYTES = 256 * 2**20
 
     def __init__(self, max_bytes=MAX_BYTES):
-        super().__init__(max_bytes)
+        super().__init__(max_bytes, shared=True)
 
     @staticmethod
     def key(n, sample_dt, seed, overrides):
@@ -582,7 +587,9 @@ class GapProblem:
         twin = copy.copy(self)
         twin.sim_seeds = rng.integers(0, 2**31 - 1, size=len(self.sim_seeds))
         twin.effect_seed = int(rng.integers(0, 2**31 - 1))
-        twin.base = [run_simulator(self.simulator, self.n_samples, self.sample_dt, s, {})
+        # through the run cache: the two halves of a split draw the same fresh runs (they
+        # share the record's seeds and have one length), one fold's reference after the other
+        twin.base = [self.run_cache.run(self.simulator, self.n_samples, self.sample_dt, s, {})
                      for s in twin.sim_seeds]
         return twin
 
