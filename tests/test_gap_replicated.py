@@ -7,7 +7,7 @@ import dataclasses
 import pytest
 
 from skdelay.gap import get_effect
-from skdelay.gap._diagnose import REPLICATES, _fresh_gap, significance
+from skdelay.gap._diagnose import REPLICATES, _fresh_gap, _fresh_gaps, significance
 from skdelay.gap._problem import GapProblem
 from skdelay.systems import MackeyGlass
 
@@ -43,6 +43,21 @@ def test_a_discrepancy_in_the_record_stays_with_it():
         fresh = _fresh_gap(problem, k)
         assert fresh > sig["threshold"]
         assert fresh == pytest.approx(sig["gap_before"], rel=0.5)
+
+
+def test_the_halves_fresh_ensembles_are_drawn_once_for_both():
+    """The two halves of a split share the record's seeds and length, so a replicate's
+    fresh ensemble is the same runs for both: drawn together in one task, the second half
+    finds all of them in the run cache, and each half's gap is the one drawn alone."""
+    x = get_effect("lowpass").apply(MG.simulate(2 * N, random_state=813), {"cutoff": 0.12})
+    problem = GapProblem(x, MG, n_sims=4, random_state=3, n_jobs=1, scan_dips=False)
+    halves = problem.split()
+    chain = [(get_effect("lowpass"), {"cutoff": 0.12})]
+    misses = problem.run_cache.misses
+    together = _fresh_gaps([(halves[1], chain), (halves[0], ())], 1)
+    assert problem.run_cache.misses - misses == 4  # one fresh ensemble of four runs
+    alone = [_fresh_gap(halves[1], 1, chain), _fresh_gap(halves[0], 1)]
+    assert together == alone and together[0] < together[1]
 
 
 def test_the_report_says_why_a_gap_above_the_threshold_is_no_gap():
