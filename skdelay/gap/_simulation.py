@@ -449,8 +449,8 @@ class ParameterDrift(Effect):
     fits_anchored_parts = True
     # the coarse scan tries every numeric parameter (``scan``): 40 evaluations on the CO2
     # laser against 9-18 for the 1-D searches of the other simulation effects, 17.9 s
-    # against 10.1 s at most (laser with a hum, 4e4 samples).  Handed out third, after the
-    # noise and timebase fits, it ran alone for the round's last 2.9 s on 2 workers
+    # against 10.1 s at most (laser with a hum, 4e4 samples).  Handed out fourth, after the
+    # timebase, noise and delay fits, it ran alone for the round's last 2.9 s on 2 workers
     fit_cost = 2.0
     #: relative end values tried for every parameter in the coarse scan
     scan = (-0.12, -0.05, -0.02, 0.02, 0.05, 0.12)
