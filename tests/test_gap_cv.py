@@ -678,6 +678,11 @@ def test_costly_fits_are_handed_out_first_and_results_keep_the_candidates_order(
         "periodic_interference", "dynamical_noise", "delay_mismatch", "clipping",
         "parameter_drift")]
     assert costs == [0.0, 1.0, 1.0, 0.0, 2.0]
+
+    class Odd:  # a registered effect's hint that is no number orders it as unset
+        target, fit_cost = "simulation", "slow"
+
+    assert _fit_cost(Odd()) == 1.0
     assert costly_first(parallel, tasks, costs) == ["HUM", "NOISE", "DELAY", "CLIP", "DRIFT"]
     assert handed == ["drift", "noise", "delay", "hum", "clip"]
 

@@ -825,11 +825,15 @@ CV_MIN_FIT_SHRINK = MIN_SHRINK - 0.2
 
 def _fit_cost(effect):
     """The effect's :attr:`~skdelay.gap.Effect.fit_cost`: 1 for a fit that re-runs the
-    simulator, 0 for one that does not, unless the effect says otherwise."""
-    cost = getattr(effect, "fit_cost", None)
-    if cost is None:
+    simulator, 0 for one that does not, unless the effect says otherwise (a registered
+    effect's hint that is not a finite number counts as unset: it only orders the tasks)."""
+    try:
+        cost = float(getattr(effect, "fit_cost", None))
+    except (TypeError, ValueError):
+        cost = math.nan
+    if not math.isfinite(cost):
         return 1.0 if getattr(effect, "target", "") == "simulation" else 0.0
-    return float(cost)
+    return cost
 
 
 def costly_first(parallel, tasks, costs, meanwhile=None):
