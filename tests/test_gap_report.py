@@ -142,3 +142,16 @@ def test_html_opens_with_the_headline(hum_report, tmp_path):
     head = hum_report.headline()
     assert page.index(head.split(":")[0]) < page.index("data:image/png;base64,")
     assert page.index("data:image/png;base64,") < page.index("Candidate effects")
+
+
+def test_a_masked_line_is_said_to_have_been_found_against_the_fitted_runs(hum_report):
+    """A line found only against the runs of the best effect (gap._diagnose.masked_lines):
+    the details say so, with the line's frequency and the effect, and only then."""
+    assert hum_report.info["masked_lines"] == [] and "stood out only" not in hum_report.summary()
+    info = dict(hum_report.info, masked_lines=[0.3125], masked_by="measurement_noise")
+    text = dataclasses.replace(hum_report, info=info).summary()
+    assert ("The spectral line at 0.3125 cycles per time unit stood out only against runs "
+            "with measurement_noise fitted") in text
+    info = dict(info, masked_lines=[0.3125, 0.25])
+    text = dataclasses.replace(hum_report, info=info).summary()
+    assert "spectral lines at 0.3125 cycles per time unit, 0.25 cycles per time unit" in text

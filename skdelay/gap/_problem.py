@@ -280,8 +280,7 @@ class GapProblem:
         range), seeded from the first run's seed (the problem's random stream, and with it
         every other draw, stays as it is).  Drawn once and kept: the range tests reuse the
         runs the line scan drew (:meth:`calibration_runs`)."""
-        seeds = np.random.RandomState(int(self.sim_seeds[0])).randint(
-            0, 2**31 - 1, size=CALIBRATION_RUNS)
+        seeds = self._calibration_seeds()
         drawn = []
 
         def more(k):
@@ -417,12 +416,7 @@ class GapProblem:
         ``tier="fast"`` simulates ``search_length`` samples with the first ``n_search``
         seeds (default ``search_sims``); ``"full"`` the whole record with every seed.
         """
-        sim_part = [(e, p) for e, p in chain if e.target == "simulation"]
-        obs_part = sorted(((e, p) for e, p in chain if e.target == "observation"),
-                          key=lambda item: item[0].stage)
-        overrides = {}
-        for eff, params in sim_part:
-            overrides.update(call_hook(eff, "overrides", params, self.simulator))
+        overrides = self._overrides(chain)
         if overrides:
             if tier == "fast":
                 n, seeds = self.search_length, self.sim_seeds[: n_search or self.search_sims]
@@ -432,8 +426,23 @@ class GapProblem:
                     for s in seeds]
         else:
             runs = self.base
+        return self._observed(runs, chain)
+
+    def _overrides(self, chain):
+        """The simulator parameters that the simulation effects of ``chain`` set."""
+        overrides = {}
+        for eff, params in chain:
+            if eff.target == "simulation":
+                overrides.update(call_hook(eff, "overrides", params, self.simulator))
+        return overrides
+
+    def _observed(self, runs, chain, first=0):
+        """``runs`` as the observation effects of ``chain`` record them (in stage order;
+        run ``j`` of the list draws with effect seed ``first + j``)."""
+        obs_part = sorted(((e, p) for e, p in chain if e.target == "observation"),
+                          key=lambda item: item[0].stage)
         out = []
-        for j, x in enumerate(runs):
+        for j, x in enumerate(runs, start=first):
             n_run = x.size
             for eff, params in obs_part:
                 y = call_hook(eff, "apply", x, params, sample_dt=self.sample_dt,
@@ -442,6 +451,25 @@ class GapProblem:
                               f"effect {eff.name!r}.apply with {params}", EffectFailed)
             out.append(x[:n_run])  # never longer than the run (a slower time base stretches it)
         return out
+
+    def calibration_ensemble(self, chain, k):
+        """The first ``k`` calibration runs (:meth:`calibration_runs` beyond the clean
+        ensemble; at most as many as there are) as the observation effects of ``chain``
+        record them, each effect drawing with seeds that follow the ensemble's: with
+        :meth:`ensemble` they are independent runs of simulator + ``chain``.  A chain with
+        a simulation effect would need runs of its own: a ValueError."""
+        if any(eff.target != "observation" for eff, _ in chain):
+            raise ValueError("calibration_ensemble takes observation effects only; "
+                             f"got {[eff.name for eff, _ in chain]}")
+        k = max(min(int(k), CALIBRATION_RUNS - len(self.base)), 0)
+        runs = self.calibration_runs()[len(self.base):len(self.base) + k]
+        return self._observed(runs, chain, first=len(self.base))
+
+    def _calibration_seeds(self):
+        """Seeds of the calibration runs (:meth:`_line_runs`), from the first run's seed: the
+        problem's random stream, and with it every other draw, stays as it is."""
+        return np.random.RandomState(int(self.sim_seeds[0])).randint(
+            0, 2**31 - 1, size=CALIBRATION_RUNS)
 
     def run_features(self, overrides, n, seed, names=None):
         """Fast-indicator features of one simulator run (``overrides``, length ``n``)."""
@@ -591,6 +619,32 @@ class GapProblem:
         # share the record's seeds and have one length), one fold's reference after the other
         twin.base = [self.run_cache.run(self.simulator, self.n_samples, self.sample_dt, s, {})
                      for s in twin.sim_seeds]
+        return twin
+
+    def with_lines(self, lines, line_hints):
+        """This problem with the spectral lines ``lines`` (and hints ``line_hints``) in place
+        of its own: the same record, runs, seeds, dips and caches, with the indicators (the
+        spectral line indicator measures each line), their clean spread, the gap before any
+        effect and its no-gap distribution made anew for them.
+
+        The diagnosis takes a line here that its scan found only against the runs of the
+        best effect (:func:`~skdelay.gap._diagnose.masked_lines`): measured by no indicator,
+        no fit could show what a hum there removes.
+        """
+        import copy
+
+        twin = copy.copy(self)
+        twin.lines, twin.line_hints = list(lines), list(line_hints)
+        twin.indicators = make_indicators(self.real, self.base, self.sample_dt,
+                                          self.delay_samples, twin.lines)
+        twin.feature_cache = FeatureCache()
+        twin._set_real(self.real)
+        twin.base_features = profiles(twin.indicators, self.base, blocks=True)
+        twin.base_var = {k: ensemble_stats(f, twin.indicators[k], b)[1]
+                         for k, (f, b) in twin.base_features.items()}
+        twin.before = twin._compare({k: f for k, (f, _) in twin.base_features.items()},
+                                    self.base)
+        twin.null_gaps = twin._null_gaps()
         return twin
 
     def world(self, chain, seed):

@@ -156,6 +156,9 @@ class GapReport:
                 "dip_sim": problem.dip_sim, "dip_spread": problem.dip_spread,
                 "dip_curves": problem.dip_curves, "spectrum_view": problem.spectrum_view,
                 "lines": [(ln.frequency, ln.amplitude, ln.z) for ln in problem.lines],
+                # of those, the lines found only against the runs of the best effect
+                "masked_lines": [ln.frequency for ln in getattr(problem, "masked_lines", ())],
+                "masked_by": getattr(problem, "masked_by", None),
                 "sim_dip_centres": [d.centre for d in problem.sim_dips],
                 "second_dips": [d.centre for d in problem.second_dips],
                 "small_rest": bool(small_rest), "dip_led": bool(dip_led),
@@ -500,6 +503,14 @@ class GapReport:
         text = [head]
         if len(self.where):
             text.append("Largest discrepancies: " + self._where_phrase(self.where) + ".")
+        masked = i.get("masked_lines") or []
+        if masked:
+            freqs = ", ".join(self._freq(f) for f in masked)
+            text.append(
+                f"The spectral line{'s' if len(masked) > 1 else ''} at {freqs} stood out only "
+                f"against runs with {i.get('masked_by')} fitted (the clean runs' own sharp "
+                f"peaks hid {'them' if len(masked) > 1 else 'it'}); the candidates were "
+                f"fitted again with {'them' if len(masked) > 1 else 'it'} measured.")
         ok = self.effects[self.effects.status == "ok"]
         if self.best_effect is None and s.get("dip_only"):
             text.append(f"No candidate effect moves {self._dip_words()}, the record's only "
