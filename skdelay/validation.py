@@ -309,26 +309,46 @@ def support_distance(x, y, *, m, tau, factor=5.0, quantile=0.99, n_probe=2000,
     >>> support_distance(x, y, m=2, tau=5), support_distance(x, 3 * y, m=2, tau=5) > 0.5
     (0.0, True)
     """
-    m = check_positive_int(m, name="m")
-    tau = check_positive_int(tau, name="tau")
-    n_lags = required_lags(m, tau)
-    cols = two_window_columns(m, tau)
-    sx = check_series(x, name="x", min_length=n_lags + 2)
-    sy = check_series(y, name="y", min_length=n_lags + 1)
-    sx, centre, scale = standardise(sx)
-    Vx = np.ascontiguousarray(lagged_windows(sx, n_lags)[0][:, cols])
-    Vy = np.ascontiguousarray(lagged_windows((sy - centre) / scale, n_lags)[0][:, cols])
-    from scipy.spatial import cKDTree
+    return _SupportReference(x, m=m, tau=tau, factor=factor, quantile=quantile,
+                            n_probe=n_probe, random_state=random_state).off_fraction(y)
 
-    tree = cKDTree(Vx)
-    rng = check_random_state(random_state)
-    probe = rng.choice(Vx.shape[0], size=min(Vx.shape[0], int(n_probe)), replace=False)
-    own = tree.query(Vx[probe], k=2)[0][:, 1]
-    limit = float(factor) * float(np.quantile(own, quantile))
-    if not limit > 0:
-        return 0.0
-    d = tree.query(Vy, k=1, distance_upper_bound=limit)[0]
-    return float(np.mean(~np.isfinite(d)))
+
+class _SupportReference:
+    """The support of one series ``x`` for :func:`support_distance`, built once.
+
+    Holds the k-d tree of ``x``'s two-window vectors and the off-support limit, so
+    that many series can be judged against the same ``x`` (the faithfulness test
+    compares every model run with the same data segments) at the cost of their
+    queries alone; ``off_fraction(y)`` equals ``support_distance(x, y, ...)`` with
+    the same arguments.
+    """
+
+    def __init__(self, x, *, m, tau, factor=5.0, quantile=0.99, n_probe=2000,
+                 random_state=None):
+        from scipy.spatial import cKDTree
+
+        m = check_positive_int(m, name="m")
+        tau = check_positive_int(tau, name="tau")
+        self._n_lags = required_lags(m, tau)
+        self._cols = two_window_columns(m, tau)
+        sx = check_series(x, name="x", min_length=self._n_lags + 2)
+        sx, self._centre, self._scale = standardise(sx)
+        Vx = np.ascontiguousarray(lagged_windows(sx, self._n_lags)[0][:, self._cols])
+        self._tree = cKDTree(Vx)
+        rng = check_random_state(random_state)
+        probe = rng.choice(Vx.shape[0], size=min(Vx.shape[0], int(n_probe)), replace=False)
+        own = self._tree.query(Vx[probe], k=2)[0][:, 1]
+        self.limit = float(factor) * float(np.quantile(own, quantile))
+
+    def off_fraction(self, y):
+        """Fraction of ``y``'s two-window vectors farther than :attr:`limit` from ``x``'s."""
+        sy = check_series(y, name="y", min_length=self._n_lags + 1)
+        if not self.limit > 0:
+            return 0.0
+        Vy = np.ascontiguousarray(
+            lagged_windows((sy - self._centre) / self._scale, self._n_lags)[0][:, self._cols])
+        d = self._tree.query(Vy, k=1, distance_upper_bound=self.limit)[0]
+        return float(np.mean(~np.isfinite(d)))
 
 
 # --------------------------------------------------------------------------- profiles
