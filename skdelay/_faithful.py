@@ -426,7 +426,7 @@ def _denoised(s):
 
 
 class _Supports:
-    """The supports (:class:`~skdelay.validation._SupportReference`) of the series that
+    """The supports (:class:`~skdelay.validation.SupportReference`) of the series that
     runs are judged against, each built on its first use: ``distance(a, b)`` equals
     ``support_distance(a, b, ...)`` with :data:`SUPPORT_FACTOR`, at the cost of ``b``'s
     queries once ``a`` has been seen (Mackey-Glass tau = 17, 1e5 samples: 320 support
@@ -440,7 +440,7 @@ class _Supports:
         key = (id(a), m, tau, seed)
         held = self._refs.get(key)
         if held is None or held[0] is not a:  # the id of a series that is gone
-            held = self._refs[key] = (a, validation._SupportReference(
+            held = self._refs[key] = (a, validation.SupportReference(
                 a, m=m, tau=tau, factor=SUPPORT_FACTOR, random_state=seed))
         return held[1].off_fraction(b)
 

@@ -40,6 +40,7 @@ from ._windows import lagged_windows
 
 __all__ = [
     "Comparison",
+    "SupportReference",
     "autocorrelation",
     "autocorrelation_distance",
     "cross_prediction_by_region",
@@ -309,18 +310,48 @@ def support_distance(x, y, *, m, tau, factor=5.0, quantile=0.99, n_probe=2000,
     >>> support_distance(x, y, m=2, tau=5), support_distance(x, 3 * y, m=2, tau=5) > 0.5
     (0.0, True)
     """
-    return _SupportReference(x, m=m, tau=tau, factor=factor, quantile=quantile,
+    return SupportReference(x, m=m, tau=tau, factor=factor, quantile=quantile,
                             n_probe=n_probe, random_state=random_state).off_fraction(y)
 
 
-class _SupportReference:
-    """The support of one series ``x`` for :func:`support_distance`, built once.
+class SupportReference:
+    """The support of one series ``x``, built once, to judge many series against it.
 
-    Holds the k-d tree of ``x``'s two-window vectors and the off-support limit, so
-    that many series can be judged against the same ``x`` (the faithfulness test
-    compares every model run with the same data segments) at the cost of their
-    queries alone; ``off_fraction(y)`` equals ``support_distance(x, y, ...)`` with
-    the same arguments.
+    :func:`support_distance` builds the k-d tree of ``x``'s two-window vectors and
+    its off-support limit on every call.  Comparing many series (model runs) with
+    the same ``x`` (a data segment), build them once here and call
+    :meth:`off_fraction` per series: it returns what ``support_distance(x, y, ...)``
+    returns with the same arguments, at the cost of ``y``'s queries alone.
+
+    Parameters
+    ----------
+    x : array-like of shape (n_samples,)
+        The database series (e.g. a data segment).
+    m, tau : int
+        Window length and delay (samples) of the two-window vectors.
+    factor : float, default=5.0
+    quantile : float, default=0.99
+    n_probe : int, default=2000
+        As in :func:`support_distance`.
+    random_state : int, RandomState or None
+        Seeds the probes; the same seed gives :func:`support_distance`'s limit.
+
+    Attributes
+    ----------
+    limit : float
+        Distance (in units of ``x``'s standard deviation) beyond which a vector is
+        off the support.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from skdelay.validation import SupportReference, support_distance
+    >>> t = np.arange(4000)
+    >>> ref = SupportReference(np.sin(t / 7.0), m=2, tau=5, random_state=0)
+    >>> y = 3 * np.sin(t / 7.0 + 1.0)
+    >>> ref.off_fraction(y) == support_distance(np.sin(t / 7.0), y, m=2, tau=5,
+    ...                                         random_state=0)
+    True
     """
 
     def __init__(self, x, *, m, tau, factor=5.0, quantile=0.99, n_probe=2000,
@@ -341,7 +372,17 @@ class _SupportReference:
         self.limit = float(factor) * float(np.quantile(own, quantile))
 
     def off_fraction(self, y):
-        """Fraction of ``y``'s two-window vectors farther than :attr:`limit` from ``x``'s."""
+        """Fraction of ``y``'s two-window vectors farther than :attr:`limit` from ``x``'s.
+
+        Parameters
+        ----------
+        y : array-like of shape (n_samples,)
+            The series judged, in the units of ``x``.
+
+        Returns
+        -------
+        float
+        """
         sy = check_series(y, name="y", min_length=self._n_lags + 1)
         if not self.limit > 0:
             return 0.0
