@@ -39,6 +39,32 @@ def test_kdtree_matches_brute_force():
         np.testing.assert_allclose(d, brute)
 
 
+@pytest.mark.parametrize("kind", ["normal", "skewed", "quantised", "constant", "tiny"])
+def test_kdtree_nodes_are_tight_and_leaves_at_least_half_full(kind):
+    """Mean splits fall back to the median where the values are skewed or equal: every
+    leaf keeps ``leaf_size // 2 .. leaf_size`` points (the node arrays' bound), every
+    point lies in exactly one leaf, and each box is its points' bounding box."""
+    rng = np.random.default_rng(1)
+    data = {"normal": rng.normal(size=(5000, 4)),
+            "skewed": rng.exponential(size=(5000, 3)) ** 4,  # mean far above the median
+            "quantised": np.round(rng.normal(size=(5000, 4)) * 2) / 2,
+            "constant": np.ones((300, 2)),
+            "tiny": rng.normal(size=(5, 3))}[kind]
+    perm, start, stop, left, right, box_lo, box_hi = build_tree(data, 16)
+    assert np.array_equal(np.sort(perm), np.arange(len(data)))
+    leaves = left < 0
+    sizes = (stop - start)[leaves]
+    assert sizes.sum() == len(data)
+    assert sizes.max() <= 16 and (len(data) <= 16 or sizes.min() >= 8)
+    for node in range(start.size):
+        pts = data[perm[start[node]:stop[node]]]
+        np.testing.assert_array_equal(box_lo[node], pts.min(axis=0))
+        np.testing.assert_array_equal(box_hi[node], pts.max(axis=0))
+        if not leaves[node]:  # children split the parent's points
+            assert start[left[node]] == start[node] and stop[right[node]] == stop[node]
+            assert stop[left[node]] == start[right[node]]
+
+
 @pytest.mark.parametrize("m, radius, order", [(3, None, 1), (2, 0.05, 1), (2, None, 0)])
 def test_each_step_equals_model_predict(mg17, m, radius, order):
     tau = 17
