@@ -430,7 +430,8 @@ class _Supports:
     runs are judged against, each built on its first use: ``distance(a, b)`` equals
     ``support_distance(a, b, ...)`` with :data:`SUPPORT_FACTOR`, at the cost of ``b``'s
     queries once ``a`` has been seen (Mackey-Glass tau = 17, 1e5 samples: 320 support
-    distances against eight segments took 11 of the 59 s of ``minimal_embedding``, nearly all
+    distances against eight segments took 11 of the 59 s of ``minimal_embedding`` (cProfile, on
+    a loaded 2-core machine; no script in benchmarks/ times it), nearly all
     of it rebuilding the segments' trees)."""
 
     def __init__(self):
