@@ -22,7 +22,7 @@ import numpy as np
 from numba import njit
 
 from ._checks import check_positive_int, check_random_state, check_series
-from ._kdtree import build_tree, query_knn
+from ._kdtree import LEAF_SIZE, build_tree, query_knn
 from ._model import resolve_model
 from ._neighbours import RADIUS_CAP, Standardiser, fit_neighbourhood, fit_scratch
 
@@ -213,7 +213,7 @@ class SupportGuard:
         self.scaler = Standardiser() if scaler is None else scaler
         self.data = np.ascontiguousarray(data, dtype=np.float64)
         self.targets = np.ascontiguousarray(targets, dtype=np.float64)
-        self.tree = build_tree(self.data)
+        self.tree = build_tree(self.data, LEAF_SIZE)  # explicit: one compiled signature
         n = self.data.shape[0]
         rng = np.random.default_rng(random_state)
         probe = rng.choice(n, size=min(n, n_probe), replace=False)

@@ -182,8 +182,10 @@ class LocalLinearDelayMap(RegressorMixin, BaseEstimator):
                 query_ids=None if query_index is None else query_index[sl],
                 theiler_window=self.theiler_window,
                 workers=_workers(self.n_jobs if n_jobs is None else n_jobs))
+            # C order whatever the caller's layout: one compiled signature, not one per layout
             A[sl], b[sl], pred[sl] = fit_gathered(
-                Xs[sl], self._Xs[pos], self._ys[pos], weight.astype(np.float64),
+                np.ascontiguousarray(Xs[sl]), self._Xs[pos], self._ys[pos],
+                weight.astype(np.float64),
                 float(self.ridge), int(self.order), 0.0)
         # back to the original units (exact: both scales are powers of two)
         return A * (sy.scale / sx.scale), sy.inverse(b), sy.inverse(pred)

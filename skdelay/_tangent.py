@@ -81,6 +81,18 @@ def _householder_qr_rows(vec, logs_out):
             _reflect(refl[j], y, j)
 
 
+# Explicit loops rather than slice assignments (``buf[:, a:] = q0``): numba compiles a slice
+# assignment with its shape-mismatch error message, whose string formatting took 5.5 of the
+# 9.8 s that _qr_iteration took to compile (numba 0.68.1, cold cache) -- in every fresh
+# process that computes a spectrum.  The copies are the same.
+@njit(cache=True, inline="always")
+def _copy_rows(src, src_col, dst, dst_col, width):
+    """``dst[:, dst_col:dst_col + width] = src[:, src_col:src_col + width]``."""
+    for j in range(src.shape[0]):
+        for i in range(width):
+            dst[j, dst_col + i] = src[j, src_col + i]
+
+
 @njit(cache=True)
 def _qr_iteration(jac, lags, q0, interval):
     """Run the tangent QR iteration over the Jacobian rows ``jac``.
@@ -107,7 +119,7 @@ def _qr_iteration(jac, lags, q0, interval):
     k, dim = q0.shape
     n_qr = n_steps // interval + 2
     buf = np.zeros((k, dim + interval))
-    buf[:, interval:] = q0
+    _copy_rows(q0, 0, buf, interval, dim)
     top = interval
     logs = np.zeros((n_qr, k))
     ends = np.zeros(n_qr, dtype=np.int64)
@@ -126,16 +138,18 @@ def _qr_iteration(jac, lags, q0, interval):
         if top == 0 or t == n_steps - 1 or big > _GROWTH_LIMIT:
             if iq == logs.shape[0]:
                 grown = np.zeros((2 * iq, k))
-                grown[:iq] = logs
-                logs = grown
                 grown_ends = np.zeros(2 * iq, dtype=np.int64)
-                grown_ends[:iq] = ends
+                for r in range(iq):
+                    grown_ends[r] = ends[r]
+                    for j in range(k):
+                        grown[r, j] = logs[r, j]
+                logs = grown
                 ends = grown_ends
-            block[:, :] = buf[:, top:top + dim]
+            _copy_rows(buf, top, block, 0, dim)
             _householder_qr_rows(block, logs[iq])
             ends[iq] = t + 1
             iq += 1
-            buf[:, interval:] = block
+            _copy_rows(block, 0, buf, interval, dim)
             top = interval
     return logs[:iq], ends[:iq]
 
