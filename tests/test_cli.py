@@ -286,11 +286,25 @@ def test_gap_too_short_real_is_usage_error(tmp_path, capsys):
 
 
 # ----------------------------------------------------------------------------------- demo
-def test_demo_reduced(tmp_path, capsys, monkeypatch):
-    monkeypatch.setenv("SKDELAY_DATA", str(tmp_path / "cache"))
-    out = tmp_path / "demo"
-    code, stdout, err = run(["demo", "--out", out, "--n-samples", 6000, "--delays", "50",
-                             "--quiet"], capsys)
+@pytest.fixture(scope="module")
+def reduced_demo(tmp_path_factory):
+    """The reduced demo (one delay, a short series) through the CLI, run once for the two
+    tests below (its files and tables; what a browser shows of its report)."""
+    import contextlib
+    import io
+
+    root = tmp_path_factory.mktemp("demo")
+    stdout, stderr = io.StringIO(), io.StringIO()
+    with pytest.MonkeyPatch.context() as mp, contextlib.redirect_stdout(stdout), \
+            contextlib.redirect_stderr(stderr):
+        mp.setenv("SKDELAY_DATA", str(root / "cache"))
+        code = main(["demo", "--out", str(root / "demo"), "--n-samples", "8000",
+                     "--delays", "50", "--quiet"])
+    return code, stdout.getvalue(), stderr.getvalue(), root / "demo"
+
+
+def test_demo_reduced(reduced_demo):
+    code, stdout, err, out = reduced_demo
     assert code == 0, err
     assert {"report.html", "table.csv", "results.json", "delay_50"} <= set(listing(out))
     table = pd.read_csv(out / "table.csv", index_col="tau0")
@@ -310,6 +324,35 @@ def test_demo_reduced(tmp_path, capsys, monkeypatch):
     chi = pd.read_csv(out / "cross_prediction.csv", index_col=0)
     assert list(chi.index) == ["O (data)", "m = 2", "m = 3", "m = 4", "m = 5"]
     assert 0 < chi.loc["O (data)", "50"] < chi.loc["m = 2", "50"] * 3
+
+
+def test_demo_report_shows_the_paper_and_the_exact_values(reduced_demo):
+    """What a reader of the reduced demo's report.html sees in a browser: the paper's
+    numbers, the simulator's exact values and the Takens cross-check (rendered in headless
+    Chromium by tests/test_report_browser.py's helper; skipped without Chromium)."""
+    browser = pytest.importorskip("test_report_browser")
+    if browser.CHROMIUM is None:
+        pytest.skip("no Chromium found (install it: apt-get install -y chromium "
+                    "chromium-driver)")
+    code, _, err, out = reduced_demo
+    assert code == 0, err
+    exact = pd.read_csv(out / "table.csv", index_col="tau0", dtype=str).loc["50"]  # as shown
+    # the m_d models' settings come from the data (cross-validated forecasts on this
+    # record), not from constants, and the report names them
+    selection = pd.read_csv(out / "delay_50" / "model_selection.csv")
+    chosen = selection.loc[selection["chosen"]].iloc[0]
+    assert exact["m_d models"] == (f"k {chosen['per_parameter']:.3g} (2m+1), "
+                                   f"ridge {chosen['ridge']:g}")
+    takens = pd.read_csv(out / "takens_cross_check.csv", index_col=0)
+    kantz_low = takens.loc["lambda_max", "standard embedding (Kantz)"].split(" .. ")[0]
+    expected = [
+        "The paper's table", exact["m_d models"], "paper", "exact (simulator)", "this model",
+        "2.5", "3.4", "68",  # Buenner et al.: lambda_max, D_KY, D_KY/tau at 50 us
+        str(exact["exact lambda_max"]), str(exact["exact D_KY"]).replace(">= ", ""),
+        "Takens cross-check", "Kantz", kantz_low,
+        "Delay estimates per m", "Cross-prediction errors", "Rescaled-spectrum collapse",
+    ]
+    browser._check_page(out / "report.html", expected, min_images=4)
 
 
 def test_demo_bad_usage(tmp_path, capsys):

@@ -192,28 +192,3 @@ def test_analysis_report_renders(tmp_path):
                 "Kaplan-Yorke", "forecast error", "Validation of the iterated models"]
     _check_page(page, expected, min_images=4)
     assert os.path.getsize(page) < 5_000_000
-
-
-def test_demo_report_shows_the_paper_and_the_exact_values(tmp_path, monkeypatch):
-    # the reduced demo (one delay, short series): what a reader of report.html sees must
-    # include the paper's numbers, the simulator's exact values and the Takens cross-check
-    from skdelay._demo import run_demo
-
-    monkeypatch.setenv("SKDELAY_DATA", str(tmp_path / "cache"))
-    demo = run_demo(delays=(50,), n_samples=8000, random_state=0)
-    demo.save(tmp_path / "demo")
-    exact = demo.table.loc[50]
-    # the m_d models' settings come from the data (cross-validated forecasts on this
-    # record), not from constants, and the report names them
-    selection = demo.results[50].model_selection
-    chosen = selection.loc[selection["chosen"]].iloc[0]
-    assert exact["m_d models"] == (f"k {chosen['per_parameter']:.3g} (2m+1), "
-                                   f"ridge {chosen['ridge']:g}")
-    expected = [
-        "The paper's table", exact["m_d models"], "paper", "exact (simulator)", "this model",
-        "2.5", "3.4", "68",  # Buenner et al.: lambda_max, D_KY, D_KY/tau at 50 us
-        str(exact["exact lambda_max"]), str(exact["exact D_KY"]).replace(">= ", ""),
-        "Takens cross-check", "Kantz", f"{demo.takens.lambda_range[0] * 1000:.3g}",
-        "Delay estimates per m", "Cross-prediction errors", "Rescaled-spectrum collapse",
-    ]
-    _check_page(tmp_path / "demo" / "report.html", expected, min_images=4)
