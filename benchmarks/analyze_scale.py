@@ -36,6 +36,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from _revision import export_package
+
 ROOT = Path(__file__).resolve().parents[1]
 SIMULATE = ["mackey_glass", "--param", "tau=100", "--noise", "0.01", "--bits", "12",
             "--seed", "0"]
@@ -124,9 +126,7 @@ def main(argv=None):
         if args.baseline:
             src = Path(tmp) / "baseline_src"
             src.mkdir()
-            archive = subprocess.run(["git", "-C", str(ROOT), "archive", args.baseline,
-                                      "skdelay"], check=True, capture_output=True).stdout
-            subprocess.run(["tar", "-x", "-C", str(src)], input=archive, check=True)
+            export_package(args.baseline, str(src))
             runs["baseline"] = run_analyze(path, Path(tmp) / "baseline", extra, src=src,
                                            echo=not args.no_echo)
             print(f"load average after the baseline run {os.getloadavg()[0]:.2f}")

@@ -33,6 +33,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from _revision import export_package
+
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_BASELINE = "aece4f4"
 DEMO = ["demo", "--delays", "50", "--n-samples", "8000", "--quiet"]
@@ -91,9 +93,7 @@ def main(argv=None):
         tmp = Path(tmp)
         base_src = tmp / "baseline"
         base_src.mkdir()
-        archive = subprocess.run(["git", "-C", str(ROOT), "archive", args.baseline, "skdelay"],
-                                 check=True, capture_output=True).stdout
-        subprocess.run(["tar", "-x", "-C", str(base_src)], input=archive, check=True)
+        export_package(args.baseline, str(base_src))
         data_cache = tmp / "data"
         # the embedded example data, generated (or read) once outside the timing
         preload = "from skdelay.datasets import load_laser; load_laser(delay=50, n_samples=8000)"

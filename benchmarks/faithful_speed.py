@@ -31,6 +31,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from _revision import export_package
+
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_BASELINE = "d92424b"
 TAUS = {1: 18, 2: 17, 3: 18, 4: 18, 5: 18}  # the record's dips (tests/test_faithful.py)
@@ -76,9 +78,7 @@ def main(argv=None):
     print(f"{os.cpu_count()} cores; load average at start {os.getloadavg()[0]:.2f}")
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
-        archive = subprocess.run(["git", "-C", str(ROOT), "archive", args.baseline, "skdelay"],
-                                 check=True, capture_output=True).stdout
-        subprocess.run(["tar", "-x", "-C", tmp], input=archive, check=True)
+        export_package(args.baseline, tmp)
         for rep in range(args.repeats):
             for label, src in (("current", ROOT), (args.baseline, tmp)):
                 rows.append((label, rep + 1, _in_subprocess(src)))

@@ -32,6 +32,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _revision import export_package
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_BASELINE = "8507cef"
@@ -76,9 +77,7 @@ def measure(n_exponents, repeats, jobs):
 
 def _baseline(rev, n_exponents, repeats, jobs):
     with tempfile.TemporaryDirectory() as tmp:
-        archive = subprocess.run(["git", "-C", str(ROOT), "archive", rev, "skdelay"],
-                                 check=True, capture_output=True).stdout
-        subprocess.run(["tar", "-x", "-C", tmp], input=archive, check=True)
+        export_package(rev, tmp)
         env = dict(os.environ, PYTHONPATH=tmp)
         res = subprocess.run([sys.executable, __file__, "--worker", "--n-exponents",
                               str(n_exponents), "--repeats", str(repeats), "--jobs",

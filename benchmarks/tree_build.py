@@ -34,6 +34,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _revision import export_package
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_BASELINE = "d92424b"
@@ -89,9 +90,7 @@ def measure(repeats):
 
 def _baseline(rev, repeats):
     with tempfile.TemporaryDirectory() as tmp:
-        archive = subprocess.run(["git", "-C", str(ROOT), "archive", rev, "skdelay"],
-                                 check=True, capture_output=True).stdout
-        subprocess.run(["tar", "-x", "-C", tmp], input=archive, check=True)
+        export_package(rev, tmp)
         env = dict(os.environ, PYTHONPATH=tmp)
         res = subprocess.run([sys.executable, __file__, "--worker", "--repeats", str(repeats)],
                              env=env, cwd=tmp, check=True, capture_output=True, text=True)
