@@ -19,3 +19,15 @@ def export_package(rev, dest):
                              capture_output=True).stdout
     subprocess.run(["tar", "-x", "-C", str(dest)], input=archive, check=True)
     return dest
+
+
+def ab_parser(doc, *, repeats, baseline):
+    """The options of a same-run A/B script: ``--repeats``, ``--baseline REV`` and the hidden
+    ``--worker`` (the subprocess that measures one package and prints JSON)."""
+    import argparse
+
+    parser = argparse.ArgumentParser(description=doc.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=repeats)
+    parser.add_argument("--baseline", default=baseline, metavar="REV")
+    parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
+    return parser

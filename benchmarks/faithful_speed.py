@@ -21,7 +21,6 @@ Numba kernels are compiled (or loaded) outside the timing by a short call first.
 
 from __future__ import annotations
 
-import argparse
 import hashlib
 import json
 import os
@@ -31,7 +30,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from _revision import export_package
+from _revision import ab_parser, export_package
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_BASELINE = "d92424b"
@@ -66,11 +65,7 @@ def _in_subprocess(pythonpath):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repeats", type=int, default=2)
-    parser.add_argument("--baseline", default=DEFAULT_BASELINE, metavar="REV")
-    parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
-    args = parser.parse_args(argv)
+    args = ab_parser(__doc__, repeats=2, baseline=DEFAULT_BASELINE).parse_args(argv)
     if args.worker:  # one measurement, JSON on the last line
         print(json.dumps(measure(), default=str))
         return

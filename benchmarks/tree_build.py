@@ -23,7 +23,6 @@ series (no repeated values) the fits and errors must agree to the last bit.
 
 from __future__ import annotations
 
-import argparse
 import hashlib
 import json
 import os
@@ -34,7 +33,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from _revision import export_package
+from _revision import ab_parser, export_package
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_BASELINE = "d92424b"
@@ -98,11 +97,7 @@ def _baseline(rev, repeats):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument("--baseline", default=DEFAULT_BASELINE, metavar="REV")
-    parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
-    args = parser.parse_args(argv)
+    args = ab_parser(__doc__, repeats=5, baseline=DEFAULT_BASELINE).parse_args(argv)
     if args.worker:  # baseline subprocess: JSON on the last line
         print(json.dumps(measure(args.repeats)))
         return
