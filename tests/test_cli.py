@@ -352,7 +352,10 @@ def test_demo_report_shows_the_paper_and_the_exact_values(reduced_demo):
         "Takens cross-check", "Kantz", kantz_low,
         "Delay estimates per m", "Cross-prediction errors", "Rescaled-spectrum collapse",
     ]
-    browser._check_page(out / "report.html", expected, min_images=4)
+    try:
+        browser._check_page(out / "report.html", expected, min_images=4)
+    finally:
+        browser.close_browser()
 
 
 def test_demo_bad_usage(tmp_path, capsys):

@@ -15,7 +15,7 @@ import pytest
 matplotlib = pytest.importorskip("matplotlib")
 matplotlib.use("Agg")
 
-from test_report_browser import _DRIVER, CHROMIUM, render
+from test_report_browser import CHROMIUM, close_browser, render
 
 from skdelay.gap import diagnose_gap
 from skdelay.systems import MackeyGlass
@@ -32,9 +32,7 @@ DT_S = 1e-6
 @pytest.fixture(scope="module", autouse=True)
 def _close_browser():
     yield
-    driver = _DRIVER.pop("driver", None)
-    if driver is not None:
-        driver.quit()
+    close_browser()
 
 
 @pytest.fixture(scope="module")

@@ -91,13 +91,19 @@ def _driver():
     return _DRIVER["driver"]
 
 
-@pytest.fixture(scope="module", autouse=True)
-def _close_browser():
-    yield
+def close_browser():
+    """Quit the Chromium that :func:`_driver` started, if any, and remove its profile (every
+    module that renders pages calls it when done: a driver left open outlives pytest)."""
     driver = _DRIVER.pop("driver", None)
     if driver is not None:
         driver.quit()
     shutil.rmtree(_DRIVER.pop("profile", ""), ignore_errors=True)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _close_browser():
+    yield
+    close_browser()
 
 
 def _with_selenium(path):
