@@ -83,8 +83,9 @@ def _householder_qr_rows(vec, logs_out):
 
 # Explicit loops rather than slice assignments (``buf[:, a:] = q0``): numba compiles a slice
 # assignment with its shape-mismatch error message, whose string formatting took 5.5 of the
-# 9.8 s that _qr_iteration took to compile (numba 0.68.1, cold cache) -- in every fresh
-# process that computes a spectrum.  The copies are the same.
+# 9.8 s that _qr_iteration took to compile (numba 0.68.1, cold cache, in-process profile;
+# benchmarks/cold_compile.py: 7.7-8.5 -> 2.7-2.9 s) -- in every fresh process that computes
+# a spectrum.  The copies are the same (bit-identical output).
 @njit(cache=True, inline="always")
 def _copy_rows(src, src_col, dst, dst_col, width):
     """``dst[:, dst_col:dst_col + width] = src[:, src_col:src_col + width]``."""
