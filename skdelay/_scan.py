@@ -31,9 +31,9 @@ Neighbour search (``ScanOptions.search``):
   queries), far beyond any affordable list.
 * ``"tree"`` -- the exact k-NN (k-NN only): for every tau a k-d tree on the
   leading principal components of both windows (:func:`window_components`,
-  :data:`TREE_COMPONENTS` per window), searched depth-first from the previous
-  query's neighbours (queries that are database times run in the tree's
-  order, each from the previous one's there); the projected distance bounds the
+  :data:`TREE_COMPONENTS` per window), searched depth-first, nearer child
+  first (queries that are database times run in the tree's order, so that
+  consecutive queries read the same leaves); the projected distance bounds the
   2m-dimensional one from below, so a box or point is pruned only when it
   cannot be nearer than the current ``k``-th neighbour, and the full distance
   is computed for the few points left (:func:`tree_cells`).  Smooth windows
@@ -45,7 +45,7 @@ Neighbour search (``ScanOptions.search``):
   cheap approximations measured were not accurate enough: on 10^5 noisy 12-bit
   Mackey-Glass points (delay 100, k = 30, every point a query, one thread) a
   query and tau cost 4.4-5.6 us of search and 0.6-1.4 us of fit (m = 2-5);
-  stopping the search after the query's own leaf (the heap seeded as here, or
+  stopping the search after the query's own leaf (the heap seeded from the previous query, or
   also with the query's neighbours at the previous tau, or keeping 60-90
   propagated neighbours) halved the time but moved sigma by up to 2.6-7 %, and
   after two leaves (about half the time) by up to 0.8-1.7 % per m: neighbours
@@ -111,6 +111,7 @@ from skdelay._embedding import second_window_start, two_window_columns
 from skdelay._kdtree import (
     box_dist2,
     build_tree,
+    insert_sorted,
     select_kth,
     window_knn_lists,
     window_knn_run,
@@ -186,6 +187,10 @@ SHARE_BYTES = 1 << 24
 #: predecessor's neighbours included), after 60 tree nodes and 171 projected distances.
 #: More components tighten the bound but slow the tree; the result is exact either way.
 TREE_COMPONENTS = 2
+#: :func:`tree_cells` copies the tree's points in full (``2m`` values, tree order) when
+#: there is at least one query per this many database rows; below that the copy costs
+#: more than the queries save by reading it instead of the scattered series.
+LOCAL_COPY = 64
 #: Leaf size of the per-tau trees (16 and 32 points per leaf: the same work within 10 %
 #: on the case above, 8: 20 % more).
 TREE_LEAF_SIZE = 16
@@ -542,47 +547,6 @@ def scan_cells(s, q_t, lists, rk2, row_of, u_min, starts, m, k, radius2, width, 
             table[touched[c]] = -1
 
 
-@njit(cache=True, inline="always")
-def _sift_down(hd, hj, pos):
-    """Restore the max-heap ``(hd, hj)`` below ``pos``."""
-    k = hd.size
-    while True:
-        child = 2 * pos + 1
-        if child >= k:
-            break
-        if child + 1 < k and hd[child + 1] > hd[child]:
-            child += 1
-        if hd[child] <= hd[pos]:
-            break
-        hd[pos], hd[child] = hd[child], hd[pos]
-        hj[pos], hj[child] = hj[child], hj[pos]
-        pos = child
-
-
-@njit(cache=True, inline="always")
-def _heap_replace(hd, hj, d, j):
-    """Replace the root of the max-heap ``(hd, hj)`` by ``(d, j)`` and restore the heap."""
-    hd[0] = d
-    hj[0] = j
-    _sift_down(hd, hj, 0)
-
-
-@njit(cache=True, nogil=True)
-def _by_distance(hd, rank):
-    """``rank``: positions of ``hd`` in increasing order (insertion sort, stable: k is
-    small and the heap is half ordered already)."""
-    for x in range(hd.size):
-        rank[x] = x
-    for x in range(1, hd.size):
-        r = rank[x]
-        d = hd[r]
-        y = x - 1
-        while y >= 0 and hd[rank[y]] > d:
-            rank[y + 1] = rank[y]
-            y -= 1
-        rank[y + 1] = r
-
-
 # The two helpers below stand in for np.searchsorted and np.argsort, whose numba
 # implementations took 1.8 and 2.6 s of the 9 s that tree_cells took to compile (numba
 # 0.68.1, cold cache): every test process and loky worker of a fresh checkout pays it.
@@ -627,44 +591,52 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
     where ``U[t]`` holds the leading principal components of the window
     ``s[t - lag]`` (``lag = 0..m-1``; orthonormal directions, so the projected
     squared distance never exceeds the 2m-dimensional one).  A depth-first
-    search prunes a box when its projected distance reaches the current
-    ``k``-th 2m-dimensional distance, and a point when its projected distance
-    does; the others get their exact distance.  When the search ends no
-    unvisited point can be nearer than the ``k``-th neighbour, so the
-    neighbourhood is the exact k-NN (up to the order of equal distances).  The
-    search starts from the previous query's neighbours, which bounds it at
-    once.  When every query is a database time (as in every scan without a
-    time-series split) the queries run in the tree's order, each from the neighbours of the one
-    before it there, a point of the same or a nearby leaf: its neighbours are
-    near, and consecutive queries read the same boxes and leaves from cache.
-    On 10^5 noisy Mackey-Glass points (k = 30, one thread) every point a query
-    took 4.65 / 5.39 / 6.77 us per query and tau at m = 2 / 3 / 5 against 5.57 /
-    6.15 / 6.98 in time order, and 10^4 (3 * 10^4) random queries 8-13 %
-    (14-18 %) less time than in time order, with the same neighbourhoods; at 10^3
-    the tree builds dominate.  Otherwise (the held-out queries of a time-series
-    split, scored against a training database) they run in time order, each
-    from the neighbours of ``q - 1`` one sample on (a neighbour of ``q - 1``
-    stays near ``q`` after one step).  Each query's error still counts in its
-    own batch (its place in ``q_t``).  Database times within ``theiler`` samples
-    of the query are skipped (``theiler < 0``: none).
+    search, nearer child first, prunes a box when its projected distance
+    reaches the current ``k``-th 2m-dimensional distance, and a point when its
+    projected distance does; the others get their exact distance.  When the
+    search ends no unvisited point can be nearer than the ``k``-th neighbour, so
+    the neighbourhood is the exact k-NN (up to the order of equal distances).
+    The tree's points, projected and full (``2m`` values), are copied in the
+    tree's order, so a leaf's points and their exact distances are read from
+    contiguous memory, and the neighbours are kept sorted by distance (an
+    insertion, not a heap: the fit reads them nearest first).
+
+    The search starts empty.  Starting it from the previous query's neighbours
+    (or, for held-out queries in time order, from the neighbours of ``q - 1``
+    one sample on) did not pay: the first leaves bound it as tightly, and the
+    seeds' exact distances and the bookkeeping that keeps them out of the heap
+    cost more than they pruned.  On 10^5 noisy 12-bit Mackey-Glass points (delay
+    100, k = 30, tau 60 and 100, one thread, every point a query) the seeded
+    search with a heap took 5.4 / 4.5 us per query and tau at m = 2 and 6.9 /
+    5.6 us at m = 5 against 5.3 / 4.4 and 7.0 / 5.6 unseeded; held-out queries
+    7.6 / 10.3 us seeded against 6.6 / 9.7 (m = 2 / 5).  When every query is a
+    database time (as in every scan without a time-series split) the queries
+    run in the tree's order: consecutive queries read the same boxes and leaves
+    from cache (on the case above 4.65 / 5.39 / 6.77 us per query and tau at m =
+    2 / 3 / 5 against 5.57 / 6.15 / 6.98 in time order).  Otherwise (the
+    held-out queries of a time-series split, scored against a training
+    database) they run in time order.  Each query's error still counts in its
+    own batch (its place in ``q_t``).  Database times within ``theiler``
+    samples of the query are skipped (``theiler < 0``: none).
 
     Adds the squared errors to ``sq[tau_index, batch]`` (batch ``i * n_batches
     // n_queries`` of query ``i``).
 
     The result is that of the plain k-d tree (:func:`_exact_task`) to the last bit, not
     only the same neighbourhoods: each neighbourhood is fitted in order of distance, as the
-    plain tree returns it, and the squared errors are summed in query order per batch, over
-    the same slices of ``chunk`` queries.  Only the order of points at equal distances (a
-    series that repeats values), or at distances within rounding of each other, can
-    differ, and with it the fit.
+    plain tree returns it, with the distances computed in the same order of operations, and
+    the squared errors are summed in query order per batch, over the same slices of
+    ``chunk`` queries.  Only the order of points at equal distances (a series that repeats
+    values), or at distances within rounding of each other, can differ, and with it the
+    fit.
     """
     n_db = db_t.size
     p = U.shape[1]
     pp2 = 2 * p
+    width = 2 * m
     n_tau = starts.size
     n_batches = sq.shape[1]
     n_q = q_t.size
-    t_hi = db_t[n_db - 1]
     # queries that are database times run in the tree's order (both sorted and unique)
     q_row = _rows_of(db_t, q_t)
     in_tree_order = True
@@ -676,22 +648,21 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
     q_order = np.arange(n_q)
     first = np.empty(n_db + 1, dtype=np.int64)
     data = np.empty((n_db, pp2))
-    sdata = np.empty((n_db, pp2))
+    sdata = np.empty((n_db, pp2))  # projected points in tree order
+    # and their 2m-dimensional vectors, where enough queries read them to repay the copy
+    # (about 8 ns per row against 0.3-0.7 us saved per query on 6000 noisy Ikeda and
+    # Mackey-Glass points: benchmarks/tree_build.py)
+    local = LOCAL_COPY * n_q >= n_db
+    sfull = np.empty((n_db if local else 0, width))
     sids = np.empty(n_db, dtype=np.int64)
-    in_heap = np.zeros(t_hi + 2, dtype=np.bool_)
-    is_db = np.zeros(t_hi + 2, dtype=np.bool_)
-    for r in range(n_db):
-        is_db[db_t[r]] = True
     qp = np.empty(pp2)
-    hd = np.empty(k)
-    hj = np.empty(k, dtype=np.int64)
+    hd = np.empty(k)  # the k nearest so far: squared distances ascending ...
+    hj = np.empty(k, dtype=np.int64)  # ... and their tree positions
     stack = np.empty(256, dtype=np.int64)
     stack_d = np.empty(256)
-    width = 2 * m
     Vn, yn, w, vq, fit_buf, a = neighbourhood_buffers(k, width)
     e2 = np.empty(n_q)
     part = np.empty(n_batches)
-    rank = np.empty(k, dtype=np.int64)
     for it in range(n_tau):
         c = starts[it]
         for r in range(n_db):
@@ -705,12 +676,14 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
                 tree_pos[perm[r]] = r
             _order_by(tree_pos, q_row, first, q_order)
         for r in range(n_db):
-            sids[r] = db_t[perm[r]]
+            j = db_t[perm[r]]
+            sids[r] = j
             for f in range(pp2):
                 sdata[r, f] = data[perm[r], f]
-        for x in range(k):
-            hj[x] = -1
-        prev_q = np.int64(-2)
+            if local:
+                for lag in range(m):
+                    sfull[r, lag] = s[j - lag]
+                    sfull[r, m + lag] = s[j - c - lag]
         for r0 in range(n_q):
             i = q_order[r0]  # the query's place in q_t
             q = q_t[i]
@@ -720,35 +693,15 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
             for lag in range(m):
                 vq[lag] = s[q - lag]
                 vq[m + lag] = s[q - c - lag]
-            follows = in_tree_order or q == prev_q + 1
-            prev_q = q
-            for x in range(k):  # seeds: the last query's neighbours (one sample on in time)
-                j = hj[x]
-                if j >= 0:
-                    in_heap[j] = False
-                    if not in_tree_order:
-                        j += 1
-                if follows and j > 0 and j <= t_hi and is_db[j] and not in_heap[j] \
-                        and (theiler < 0 or abs(j - q) > theiler):
-                    acc = 0.0
-                    for lag in range(m):
-                        d1 = vq[lag] - s[j - lag]
-                        d2 = vq[m + lag] - s[j - c - lag]
-                        acc += d1 * d1 + d2 * d2
-                    hd[x] = acc
-                    hj[x] = j
-                    in_heap[j] = True
-                else:
-                    hd[x] = np.inf
-                    hj[x] = -1
-            for x in range(k // 2 - 1, -1, -1):
-                _sift_down(hd, hj, x)
+            for x in range(k):
+                hd[x] = np.inf
+                hj[x] = -1
             stack[0] = 0
             stack_d[0] = 0.0
             sp = 1
             while sp > 0:  # depth first, nearer child first; boxes keep their distance
                 sp -= 1
-                if stack_d[sp] >= hd[0]:
+                if stack_d[sp] >= hd[k - 1]:
                     continue
                 node = stack[sp]
                 if left[node] >= 0:
@@ -757,11 +710,11 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
                     dr = box_dist2(qp, box_lo, box_hi, rc)
                     if dl > dr:
                         lc, rc, dl, dr = rc, lc, dr, dl
-                    if dr < hd[0]:
+                    if dr < hd[k - 1]:
                         stack[sp] = rc
                         stack_d[sp] = dr
                         sp += 1
-                    if dl < hd[0]:
+                    if dl < hd[k - 1]:
                         stack[sp] = lc
                         stack_d[sp] = dl
                         sp += 1
@@ -771,31 +724,34 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
                     for f in range(pp2):
                         d1 = sdata[r, f] - qp[f]
                         pd += d1 * d1
-                    if pd >= hd[0]:
+                    if pd >= hd[k - 1]:
                         continue
-                    j = sids[r]
-                    if in_heap[j] or (theiler >= 0 and abs(j - q) <= theiler):
+                    if theiler >= 0 and abs(sids[r] - q) <= theiler:
                         continue
                     acc = 0.0
-                    for lag in range(m):
-                        d1 = vq[lag] - s[j - lag]
-                        d2 = vq[m + lag] - s[j - c - lag]
-                        acc += d1 * d1 + d2 * d2
-                    if acc < hd[0]:
-                        if hj[0] >= 0:
-                            in_heap[hj[0]] = False
-                        in_heap[j] = True
-                        _heap_replace(hd, hj, acc, j)
-            _by_distance(hd, rank)  # the plain tree's order: nearest first, empty slots last
-            for x in range(k):
-                j = hj[rank[x]]
-                if j < 0:
+                    if local:
+                        for lag in range(m):
+                            d1 = vq[lag] - sfull[r, lag]
+                            d2 = vq[m + lag] - sfull[r, m + lag]
+                            acc += d1 * d1 + d2 * d2
+                    else:
+                        j = sids[r]
+                        for lag in range(m):
+                            d1 = vq[lag] - s[j - lag]
+                            d2 = vq[m + lag] - s[j - c - lag]
+                            acc += d1 * d1 + d2 * d2
+                    if acc < hd[k - 1]:
+                        insert_sorted(hd, hj, k, acc, r)
+            for x in range(k):  # the plain tree's order: nearest first, empty slots last
+                r = hj[x]
+                if r < 0:
                     w[x] = 0.0
                     yn[x] = 0.0
                     for f in range(width):
                         Vn[x, f] = 0.0
                     continue
                 w[x] = 1.0
+                j = sids[r]
                 yn[x] = s[j + 1]
                 for lag in range(m):
                     Vn[x, lag] = s[j - lag]
@@ -809,9 +765,6 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
                 part[(i * n_batches) // n_q] += e2[i]
             for b in range(n_batches):
                 sq[it, b] += part[b]
-        for x in range(k):
-            if hj[x] >= 0:
-                in_heap[hj[x]] = False
 
 
 def window_components(s, m, times, n_components):
