@@ -567,18 +567,31 @@ def _rows_of(db_t, q_t):
 
 
 @njit(cache=True, nogil=True)
-def _order_by(tree_pos, q_row, first, q_order):
-    """``q_order[:] = argsort(tree_pos[q_row])``, stable: a counting sort over the tree's
-    positions (``first``: scratch of ``tree_pos.size + 1``)."""
+def _order_by(keys, first, q_order):
+    """``q_order[:] = argsort(keys)``, stable: a counting sort over the keys, which lie in
+    ``0 .. first.size - 2`` (``first``: scratch)."""
     first[:] = 0
-    for i in range(q_row.size):
-        first[tree_pos[q_row[i]] + 1] += 1
-    for r in range(tree_pos.size):
+    for i in range(keys.size):
+        first[keys[i] + 1] += 1
+    for r in range(first.size - 1):
         first[r + 1] += first[r]
-    for i in range(q_row.size):
-        pos = tree_pos[q_row[i]]
+    for i in range(keys.size):
+        pos = keys[i]
         q_order[first[pos]] = i
         first[pos] += 1
+
+
+@njit(cache=True, nogil=True)
+def _leaf_of(qp, left, right, box_lo, box_hi):
+    """The leaf a point descends to: at every node the child whose box is nearer."""
+    node = 0
+    while left[node] >= 0:
+        a, b = left[node], right[node]
+        if box_dist2(qp, box_lo, box_hi, b) < box_dist2(qp, box_lo, box_hi, a):
+            node = b
+        else:
+            node = a
+    return node
 
 
 @njit(cache=True, nogil=True)
@@ -602,22 +615,25 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
     insertion, not a heap: the fit reads them nearest first).
 
     The search starts empty.  Starting it from the previous query's neighbours
-    (or, for held-out queries in time order, from the neighbours of ``q - 1``
+    (or, for held-out queries, from the neighbours of ``q - 1``
     one sample on) did not pay: the first leaves bound it as tightly, and the
     seeds' exact distances and the bookkeeping that keeps them out of the heap
     cost more than they pruned.  On 10^5 noisy 12-bit Mackey-Glass points (delay
     100, k = 30, tau 60 and 100, one thread, every point a query) the seeded
     search with a heap took 5.4 / 4.5 us per query and tau at m = 2 and 6.9 /
     5.6 us at m = 5 against 5.3 / 4.4 and 7.0 / 5.6 unseeded; held-out queries
-    7.6 / 10.3 us seeded against 6.6 / 9.7 (m = 2 / 5).  When every query is a
-    database time (as in every scan without a time-series split) the queries
-    run in the tree's order: consecutive queries read the same boxes and leaves
-    from cache (on the case above 4.65 / 5.39 / 6.77 us per query and tau at m =
-    2 / 3 / 5 against 5.57 / 6.15 / 6.98 in time order).  Otherwise (the
-    held-out queries of a time-series split, scored against a training
-    database) they run in time order.  Each query's error still counts in its
-    own batch (its place in ``q_t``).  Database times within ``theiler``
-    samples of the query are skipped (``theiler < 0``: none).
+    7.6 / 10.3 us seeded against 6.6 / 9.7 (m = 2 / 5).  The queries run in the
+    tree's order, so that consecutive queries read the same boxes and leaves
+    from cache: a query that is a database time (as in every scan without a
+    time-series split) at its own place in the tree, a held-out query (the test
+    fold of a time-series split, scored against a training database) at the
+    leaf it descends to (:func:`_leaf_of`).  On the case above, every point a
+    query, 4.65 / 5.39 / 6.77 us per query and tau at m = 2 / 3 / 5 against
+    5.57 / 6.15 / 6.98 in time order; 3*10^4 held-out queries against 7*10^4
+    training rows (unquantised), 4.8 / 6.8 us at m = 2 / 5 against 5.2-6.0 /
+    8.1-9.0 in time order.  Each query's error still counts in its own batch
+    (its place in ``q_t``).  Database times within ``theiler`` samples of the
+    query are skipped (``theiler < 0``: none).
 
     Adds the squared errors to ``sq[tau_index, batch]`` (batch ``i * n_batches
     // n_queries`` of query ``i``).
@@ -645,7 +661,8 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
             in_tree_order = False
             break
     tree_pos = np.empty(n_db, dtype=np.int64)
-    q_order = np.arange(n_q)
+    q_order = np.empty(n_q, dtype=np.int64)
+    q_key = np.empty(n_q, dtype=np.int64)
     first = np.empty(n_db + 1, dtype=np.int64)
     data = np.empty((n_db, pp2))
     sdata = np.empty((n_db, pp2))  # projected points in tree order
@@ -674,7 +691,16 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
         if in_tree_order:
             for r in range(n_db):
                 tree_pos[perm[r]] = r
-            _order_by(tree_pos, q_row, first, q_order)
+            for i in range(n_q):
+                q_key[i] = tree_pos[q_row[i]]
+        else:  # the first position of the leaf each query descends to
+            for i in range(n_q):
+                q = q_t[i]
+                for f in range(p):
+                    qp[f] = U[q, f]
+                    qp[p + f] = U[q - c, f]
+                q_key[i] = start[_leaf_of(qp, left, right, box_lo, box_hi)]
+        _order_by(q_key, first, q_order)
         for r in range(n_db):
             j = db_t[perm[r]]
             sids[r] = j

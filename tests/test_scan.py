@@ -326,7 +326,7 @@ def test_tree_search_is_the_exact_knn(every_point):
 
 def test_tree_search_of_held_out_queries_is_the_exact_knn():
     # queries that are not database times (a time-series split's test fold against its
-    # training rows) run in time order, not the tree's, and stay exact
+    # training rows) run in the order of the leaves they descend to, and stay exact
     from skdelay._scan import TREE_LEAF_SIZE, tree_cells, window_components
 
     s = measured_mackey_glass(1200, 30, noise=0.01, bits=None, seed=5)
