@@ -32,11 +32,12 @@ Neighbour search (``ScanOptions.search``):
 * ``"tree"`` -- the exact k-NN (k-NN only): for every tau a k-d tree on the
   leading principal components of both windows (:func:`window_components`,
   :data:`TREE_COMPONENTS` per window), searched depth-first, nearer child
-  first (queries that are database times run in the tree's order, so that
-  consecutive queries read the same leaves); the projected distance bounds the
-  2m-dimensional one from below, so a box or point is pruned only when it
-  cannot be nearer than the current ``k``-th neighbour, and the full distance
-  is computed for the few points left (:func:`tree_cells`).  Smooth windows
+  first (the queries run in the tree's order, a held-out query at the leaf it
+  descends to, so that consecutive queries read the same leaves); the
+  projected distance bounds the 2m-dimensional one from below, so a box or
+  point is pruned only when it cannot be nearer than the current ``k``-th
+  neighbour, and the full distance is computed for the few points left
+  (:func:`tree_cells`).  Smooth windows
   are nearly flat in the first few components (two hold 99.98 % of the
   variance of noisy Mackey-Glass windows), so the 4-dimensional tree prunes
   almost as well as a 2m-dimensional one at a fraction of its cost; rough
@@ -45,10 +46,10 @@ Neighbour search (``ScanOptions.search``):
   cheap approximations measured were not accurate enough: on 10^5 noisy 12-bit
   Mackey-Glass points (delay 100, k = 30, every point a query, one thread) a
   query and tau cost 4.4-5.6 us of search and 0.6-1.4 us of fit (m = 2-5);
-  stopping the search after the query's own leaf (the heap seeded from the previous query, or
-  also with the query's neighbours at the previous tau, or keeping 60-90
-  propagated neighbours) halved the time but moved sigma by up to 2.6-7 %, and
-  after two leaves (about half the time) by up to 0.8-1.7 % per m: neighbours
+  stopping the search after the query's own leaf (the heap seeded from the
+  previous query, or also with the query's neighbours at the previous tau, or
+  keeping 60-90 propagated neighbours) halved the time but moved sigma by up
+  to 2.6-7 %, and after two leaves (about half the time) by up to 0.8-1.7 % per m: neighbours
   enter a moving neighbourhood faster than propagation finds them.  Pruning a
   box already when its distance reaches a quarter (a tenth) of the ``k``-th
   (an approximate search with ``eps = 1`` (2.2)) saved only 24 % (37 %) of the
