@@ -3,6 +3,7 @@
 Run (prints the exact command, the load average and the table)::
 
     python benchmarks/tree_build.py [--baseline REV] [--repeats 5]
+    python benchmarks/tree_build.py --baseline REV --n 100000 --held-out-only --repeats 3
 
 One table, measured for the current package and for git revision ``REV``
 (default ``d92424b``: median splits at every k-d tree node, boxes computed
@@ -10,9 +11,9 @@ top-down), exported with ``git archive`` into a temporary directory and run in
 a subprocess by this same script, one after the other in the same run.
 
 :func:`skdelay.forecast_error_curve` with the projected tree search
-(``search="tree"``, no refinement) on 6000 samples of a noisy Ikeda run (step
-0.25, 20 % noise) and of a noisy Mackey-Glass run (5 %), m = 2 and 4, taus
-3..20, k = 20: milliseconds per tau (the best of ``--repeats``) with 10
+(``search="tree"``, no refinement) on ``--n`` samples (default 6000) of a noisy
+Ikeda run (step 0.25, 20 % noise) and of a noisy Mackey-Glass run (5 %), m = 2
+and 4, taus 3..20, k = 20: milliseconds per tau (the best of ``--repeats``) with 10
 queries (nearly all of it the tree builds and copies), with 400 queries (as
 the gap diagnosis's forecast-error indicator) and with every point a query;
 and, held out, every row of the two test folds of a time-series split scored
@@ -43,14 +44,14 @@ DEFAULT_BASELINE = "d92424b"
 TAUS = np.arange(3, 21)
 
 
-def _series(kind):
+def _series(kind, n=6000):
     from skdelay.systems import Ikeda, MackeyGlass
 
     if kind == "ikeda":
-        x = Ikeda().simulate(6000, sample_dt=0.25, random_state=3)
+        x = Ikeda().simulate(n, sample_dt=0.25, random_state=3)
         x = x + 0.2 * x.std() * np.random.default_rng(0).standard_normal(x.size)
     else:
-        x = MackeyGlass().simulate(6000, random_state=3)
+        x = MackeyGlass().simulate(n, random_state=3)
         x = x + 0.05 * x.std() * np.random.default_rng(0).standard_normal(x.size)
     return (x - x.mean()) / x.std()
 
@@ -65,15 +66,15 @@ def _best(fn, repeats):
     return best
 
 
-def measure(repeats):
+def measure(repeats, n=6000, held_out_only=False):
     """{name: [ms per tau, digest of sigma and its standard error]}."""
     from skdelay import forecast_error_curve
 
     out = {}
     for kind in ("ikeda", "mg"):
-        x = _series(kind)
+        x = _series(kind, n)
         for m in (2, 4):
-            for nq in (10, 400, None):
+            for nq in () if held_out_only else (10, 400, None):
                 got = {}
 
                 def run(x=x, m=m, nq=nq, got=got):
@@ -116,27 +117,33 @@ def _held_out(x, m, repeats):
     return [ms, digest[:12]]
 
 
-def _baseline(rev, repeats):
+def _baseline(rev, repeats, extra=()):
     with tempfile.TemporaryDirectory() as tmp:
         export_package(rev, tmp)
         env = dict(os.environ, PYTHONPATH=tmp)
-        res = subprocess.run([sys.executable, __file__, "--worker", "--repeats", str(repeats)],
-                             env=env, cwd=tmp, check=True, capture_output=True, text=True)
+        res = subprocess.run([sys.executable, __file__, "--worker", "--repeats", str(repeats)]
+                             + list(extra), env=env, cwd=tmp, check=True, capture_output=True,
+                             text=True)
         return json.loads(res.stdout.splitlines()[-1])
 
 
 def main(argv=None):
-    args = ab_parser(__doc__, repeats=5, baseline=DEFAULT_BASELINE).parse_args(argv)
+    parser = ab_parser(__doc__, repeats=5, baseline=DEFAULT_BASELINE)
+    parser.add_argument("--n", type=int, default=6000, help="samples of each series")
+    parser.add_argument("--held-out-only", action="store_true",
+                        help="only the held-out rows (e.g. at --n 100000)")
+    args = parser.parse_args(argv)
+    extra = ["--n", str(args.n)] + (["--held-out-only"] if args.held_out_only else [])
     if args.worker:  # baseline subprocess: JSON on the last line
-        print(json.dumps(measure(args.repeats)))
+        print(json.dumps(measure(args.repeats, args.n, args.held_out_only)))
         return
     import skdelay
 
     print("command: python benchmarks/tree_build.py " + " ".join(sys.argv[1:]))
     print(f"skdelay from {Path(skdelay.__file__).parent}; {os.cpu_count()} cores; "
           f"load average at start {os.getloadavg()[0]:.2f}")
-    cur = measure(args.repeats)
-    base = _baseline(args.baseline, args.repeats)
+    cur = measure(args.repeats, args.n, args.held_out_only)
+    base = _baseline(args.baseline, args.repeats, extra)
     print(f"load average at end {os.getloadavg()[0]:.2f}; baseline: git revision "
           f"{args.baseline} (git archive, subprocess, same run); best of {args.repeats}")
     print(f"\n{'per tau':<24} {'current [ms]':>13} {'baseline [ms]':>14} {'ratio':>6} "
