@@ -616,14 +616,15 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
     insertion, not a heap: the fit reads them nearest first).
 
     The search starts empty.  Starting it from the previous query's neighbours
-    (or, for held-out queries, from the neighbours of ``q - 1``
-    one sample on) did not pay: the first leaves bound it as tightly, and the
-    seeds' exact distances and the bookkeeping that keeps them out of the heap
-    cost more than they pruned.  On 10^5 noisy 12-bit Mackey-Glass points (delay
-    100, k = 30, tau 60 and 100, one thread, every point a query) the seeded
-    search with a heap took 5.4 / 4.5 us per query and tau at m = 2 and 6.9 /
-    5.6 us at m = 5 against 5.3 / 4.4 and 7.0 / 5.6 unseeded; held-out queries
-    7.6 / 10.3 us seeded against 6.6 / 9.7 (m = 2 / 5).  The queries run in the
+    (or, for held-out queries, from the neighbours of ``q - 1`` one sample on)
+    did not pay: the first leaves bound it as tightly (on 10^5 noisy 12-bit
+    Mackey-Glass points, k = 30, m = 2, a query visited 61 nodes and 210 points
+    seeded, 63 and 221 unseeded), and the seeds' exact distances and the
+    bookkeeping that kept them out of the heap cost more than they pruned.
+    Unseeded, with the sorted neighbours and the copy, the scan took 11-13 %
+    less CPU than seeded with a heap (``python benchmarks/delay_scan.py --part
+    a --quick``, against 63631c8 in the same session; per tau,
+    ``benchmarks/tree_build.py``).  The queries run in the
     tree's order, so that consecutive queries read the same boxes and leaves
     from cache: a query that is a database time (as in every scan without a
     time-series split) at its own place in the tree, a held-out query (the test
