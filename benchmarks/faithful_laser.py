@@ -10,7 +10,7 @@ normalised), takes each m's delay from the forecast-error dip on a grid of
 +-15 samples around the physical delay, and runs
 :func:`skdelay.dynamics.minimal_embedding` (m = 1..5, ``flow=True``) with the
 demo's models: neighbours per parameter and ridge chosen by time-series
-cross-validation of forecasts on the record (``select_model_options`` for m = 5).  Prints m_d and, per m, every
+cross-validation of forecasts per m (``select_model=True``).  Prints m_d and, per m, every
 criterion with its band, so that the reason for each verdict is visible.  What
 the paper reports: m_d <= 5 at every delay.
 
@@ -37,7 +37,6 @@ import pandas as pd
 from skdelay import forecast_error_curve, locate_dips
 from skdelay.datasets import LASER_BITS, LASER_DYNAMICAL_NOISE, LASER_MEASUREMENT_NOISE
 from skdelay.dynamics import SpectrumOptions, minimal_embedding
-from skdelay.model_selection import select_model_options
 from skdelay.systems import CO2LaserFeedback, measure
 
 PRESETS = ("buenner2000",)
@@ -92,8 +91,7 @@ def main(argv=None):
             taus = {int(m): int(dips.loc[m, "tau_best"]) for m in dips.index}
             length = min(args.n // 8, 10_000)
             control = control_records(preset, delay, length, seed=args.seed + delay)
-            model = select_model_options(x, 5, taus[5], random_state=args.seed).options
-            res = minimal_embedding(x, tau=taus, m_max=5, model=model,
+            res = minimal_embedding(x, tau=taus, m_max=5, select_model=True,
                                     spectrum=SpectrumOptions(
                                         n_steps=min(args.n, args.spectrum_steps), flow=True),
                                     control=control, random_state=args.seed)
@@ -107,7 +105,8 @@ def main(argv=None):
                          "control within bands": " ".join(
                              f"{k[:4]}{'+' if v else '-'}"
                              for k, v in res.table.attrs["control_pass"].items()),
-                         "k per parameter, ridge": f"{model.per_parameter:g}, {model.ridge:g}",
+                         "k (m=1..5), ridge": "/".join(map(str, res.table["n_neighbors"]))
+                         + ", " + "/".join(f"{r:g}" for r in res.table["ridge"]),
                          "denoised": res.denoised,
                          "seconds": round(dt, 1), "load": round(os.getloadavg()[0], 2)})
             lines.append(f"{preset} delay={delay}: m_d={res.m_d} ({res.reason or 'ok'})")

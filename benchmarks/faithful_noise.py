@@ -3,8 +3,10 @@
 For Mackey-Glass with tau = 17, 23, 30 at 10^5 samples, clean and with 1 % and
 5 % Gaussian measurement noise, runs :func:`skdelay.dynamics.minimal_embedding`
 (m = 1..5, delay from the data's own forecast-error dips; with ``--select``
-the neighbourhood size and ridge from time-series cross-validation of the
-m = 5 model, otherwise the defaults) and prints m_d with every model's verdict and, per m, every criterion with its band (the
+every m's neighbourhood size and ridge from time-series cross-validation on the
+series its model is fitted on, as ``skdelay analyze`` does; with
+``--select-m5-raw`` the m = 5 model's, chosen on the raw record, for every m,
+as analyses did before stop 74; otherwise the defaults) and prints m_d with every model's verdict and, per m, every criterion with its band (the
 runs behind each verdict), the estimated noise level and whether the models were fitted
 on noise-reduced data.  What must hold: m_d within +-1 across
 the noise levels of one system, and "faithful at m" implies "faithful at m+1".
@@ -28,7 +30,7 @@ from skdelay.model_selection import select_model_options
 from skdelay.systems import MackeyGlass, measure
 
 NOISE_LEVELS = (0.0, 0.01, 0.05)
-COLUMNS = ["tau", "faithful", "histogram", "histogram_band", "spectrum", "spectrum_band",
+COLUMNS = ["tau", "n_neighbors", "ridge", "faithful", "histogram", "histogram_band", "spectrum", "spectrum_band",
            "chi", "chi_band", "support", "support_band", "clipped", "lyapunov", "lambda_1", "d_ky"]
 
 
@@ -40,7 +42,11 @@ def main(argv=None):
     parser.add_argument("--out", default=None)
     parser.add_argument("--noise", type=float, nargs="+", default=list(NOISE_LEVELS))
     parser.add_argument("--select", action="store_true",
-                        help="model settings by cross-validation (else the defaults)")
+                        help="model settings by cross-validation per m on the series the "
+                             "models are fitted on, as analyze does (else the defaults)")
+    parser.add_argument("--select-m5-raw", action="store_true",
+                        help="the settings of the m = 5 model cross-validated on the raw "
+                             "record, for every m (analyze's choice before stop 74)")
     args = parser.parse_args(argv)
     rows, lines = [], []
     pd.set_option("display.width", 200)
@@ -53,15 +59,19 @@ def main(argv=None):
             dips = locate_dips(forecast_error_curve(x, m=(1, 2, 3, 4, 5), tau=grid,
                                                     n_queries=5000, random_state=args.seed))
             taus = {int(m): int(dips.loc[m, "tau_best"]) for m in dips.index}
-            model = (select_model_options(x, 5, taus[5], random_state=args.seed).options
-                     if args.select else None)
-            res = minimal_embedding(x, tau=taus, m_max=5, model=model, random_state=args.seed)
+            if args.select_m5_raw:  # the analyses' choice before stop 74 (for A/B runs)
+                res = minimal_embedding(x, tau=taus, m_max=5, random_state=args.seed,
+                                        model=select_model_options(
+                                            x, 5, taus[5], random_state=args.seed).options)
+            else:
+                res = minimal_embedding(x, tau=taus, m_max=5, select_model=args.select,
+                                        random_state=args.seed)
             dt = time.perf_counter() - t0
             verdicts = " ".join("+" if f else "-" for f in res.table["faithful"])
             rows.append({"tau": tau, "noise": noise, "m_d": "none" if res.m_d is None else res.m_d,
                          "verdicts m=1..5": verdicts,
-                         "k/param, ridge": "default" if model is None else
-                         f"{model.per_parameter:g}, {model.ridge:g}",
+                         "k (m=1..5), ridge": "/".join(map(str, res.table["n_neighbors"]))
+                         + ", " + "/".join(f"{r:g}" for r in res.table["ridge"]),
                          "noise est.": round(res.noise_level / x.std(), 4),
                          "denoised": res.denoised,
                          "seconds": round(dt, 1), "load": round(os.getloadavg()[0], 2)})
@@ -78,6 +88,7 @@ def main(argv=None):
             fh.write(f"nice -n 10 python benchmarks/faithful_noise.py --n {args.n} --taus "
                      f"{' '.join(map(str, args.taus))} --seed {args.seed}"
                      f"{' --select' if args.select else ''}"
+                     f"{' --select-m5-raw' if args.select_m5_raw else ''}"
                      f"\n\n" + text)
 
 

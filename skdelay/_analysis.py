@@ -29,7 +29,6 @@ from ._faithful import DEFAULT_RUN, FreeRunOptions, SpectrumOptions, minimal_emb
 from ._io import atomic_directory, write_json
 from ._iterate import progress_bars
 from ._model import ModelOptions
-from ._model_selection import select_model_options
 from ._report import ordinal, step_sentence, write_analysis_report
 from ._sampling import MAX_STEP, sampling_step, smooth_at_step
 from ._selection import forecast_error_curve
@@ -223,7 +222,9 @@ class AnalysisResult:
         Samples of the record (None: ``series.size * step``, which overcounts by
         up to ``step - 1``).
     model_selection : pandas.DataFrame or None
-        The cross-validation table behind the model settings (``select_model``).
+        The cross-validation tables behind the model settings (``select_model``):
+        one row per window length ``m`` and setting, each ``m`` cross-validated
+        on the series its model is fitted on (noise-reduced where it is).
     time_unit : str
         Name of the time unit (labels: exponents per this unit).
     revivals : dict
@@ -444,7 +445,10 @@ class AnalysisOptions:
     select_model : bool
         Choose the models' neighbourhood size and ridge by time-series
         cross-validation (:func:`~skdelay._model_selection.select_model_options`)
-        on the reported ``m``; the table is kept in ``AnalysisResult.model_selection``.
+        for every ``m``, on the series its model is fitted on (see
+        :func:`~skdelay.dynamics.minimal_embedding`); the tables are kept in
+        ``AnalysisResult.model_selection`` and ``options`` reports the largest
+        ``m``'s settings (the model whose spectrum is reported).
     time_unit : str
         Name of the unit of ``sample_dt`` (e.g. ``"us"``), used in every label.
     refine : bool
@@ -655,24 +659,24 @@ def analyze_series(series, options=None, *, quick=False, random_state=0, n_jobs=
                                                 N_EXPONENTS_BASE
                                                 + tau_of[ms[-1]] // DELAY_PER_EXPONENT))
     s_val = s[n - opts.n_validation:]
-    selection = None
-    if opts.select_model:
-        say(f"model settings: cross-validating neighbours and ridge for m = {ms[-1]}")
-        selection = select_model_options(s_val, ms[-1], tau_of[ms[-1]], base=opts.model,
-                                         random_state=random_state, n_jobs=n_jobs)
-        opts = replace(opts, model=selection.options)
     # tqdm bars (with ETA) for every free run and spectrum when the scan shows one too;
     # their wall times are added up in ``stages``
     stages = {}
     with progress_bars(enabled=progress is not None and verbose > 0, timings=stages):
         faithful = minimal_embedding(
             s_val, tau=tau_of, m_min=m_all[0], m_max=m_all[-1], model=opts.model,
-            free_runs=FreeRunOptions(n_steps=opts.n_run, n_runs=opts.n_runs),
+            select_model=bool(opts.select_model), free_runs=FreeRunOptions(n_steps=opts.n_run, n_runs=opts.n_runs),
             spectrum=SpectrumOptions(
                 n_exponents=n_exp, max_doublings={mm: int(mm == ms[-1]) for mm in m_all},
                 n_steps=min(opts.n_spectrum_steps, s_val.size), flow=bool(opts.flow)),
             sample_dt=dt, random_state=random_state, n_jobs=n_jobs, progress=say)
     timings["models"] = time.perf_counter() - t2
+    selection = None
+    if faithful.selection:  # one table, a row per (m, setting)
+        selection = pd.concat([sel.table.assign(m=mm) for mm, sel in faithful.selection.items()],
+                              ignore_index=True)
+        selection = selection[["m"] + [c for c in selection.columns if c != "m"]]
+        opts = replace(opts, model=faithful.options[ms[-1]])  # the reported model's settings
     timings["free_runs"] = stages.get("free_runs", 0.0)
     timings["spectra"] = stages.get("spectra", 0.0)
     # the rest of the model stage: fits, noise level, histogram/spectrum/chi distances
@@ -684,7 +688,7 @@ def analyze_series(series, options=None, *, quick=False, random_state=0, n_jobs=
         delays=dips, m=ms[-1], spectra=faithful.spectra, validation=faithful.table,
         minimal_m=faithful.m_d, minimal_m_reason=faithful.reason, step=step,
         steps_tried=tuple(tried), step_given=not chosen, n_record=raw.size,
-        model_selection=None if selection is None else selection.table,
+        model_selection=selection,
         time_unit=opts.time_unit,
         runs={mm: r[0] for mm, r in faithful.runs.items() if r}, options=opts.to_dict(),
         timings=timings,

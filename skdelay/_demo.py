@@ -245,9 +245,20 @@ def cross_prediction_table(results):
     return out
 
 
+def models_label(table):
+    """The m_d models' settings as the table shows them: ``"k 10/14/36/44 (m 2-5), ridge
+    0.001"`` (one ridge when all agree) from a verdict table's ``n_neighbors`` and
+    ``ridge`` columns (index ``m``)."""
+    ms = list(table.index)
+    ridges = [f"{r:g}" for r in table["ridge"]]
+    ridge = ridges[0] if len(set(ridges)) == 1 else "/".join(ridges)
+    span = f"m {ms[0]}" if len(ms) == 1 else f"m {ms[0]}-{ms[-1]}"
+    return f"k {'/'.join(str(int(k)) for k in table['n_neighbors'])} ({span}), ridge {ridge}"
+
+
 #: The analyses' models (minimal faithful m, validation, cross-prediction) take their
 #: neighbourhood size and ridge from the data: ``select_model=True``, time-series
-#: cross-validation of one-step and iterated forecasts on each record
+#: cross-validation of one-step and iterated forecasts on each record, per m
 #: (:func:`~skdelay._model_selection.select_model_options`), starting from the generic
 #: :class:`~skdelay._model.ModelOptions`.  The hand-chosen k = 100, ridge 3e-2 of earlier
 #: versions were picked against the exact spectra of an earlier laser regime.
@@ -411,9 +422,7 @@ def run_demo(*, delays=(50, 150, 400), n_samples=None, exact=True, n_exact=20,
                "D_KY": bound + _fmt(row["D_KY"]), "h_KS": _fmt(row["h_KS"] * scale),
                "D_KY/tau": bound + _fmt(row["D_KY/tau"] * scale),
                "m_d": "none" if row["minimal_m"] is None else row["minimal_m"]}
-        used = res.options  # the cross-validated settings of the m_d models
-        out["m_d models"] = (f"k {_fmt(used['per_parameter'])} (2m+1), "
-                             f"ridge {used['ridge']:g}")
+        out["m_d models"] = models_label(res.validation)  # cross-validated per m
         if select_spectrum:
             out["spectrum model"] = (f"step {sel.step}, m {sel.m}, k {sel.options.n_neighbors}"
                                      f", ridge {sel.options.ridge:g}")

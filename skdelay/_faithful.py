@@ -26,9 +26,19 @@ Guarantees:
   clearly fails, so "faithful at m" implies "faithful at m + 1" up to models
   the runs cannot decide (``marginal``: every failed criterion's band lies
   within the 95 % interval of the runs' median); the table marks them;
+* with ``select_model`` every ``m`` gets its own neighbourhood size and ridge,
+  cross-validated on the series its model is fitted on (the noise-reduced one
+  when the noise is reduced): settings chosen on the raw noisy record are the
+  heavy smoothing that noise calls for, and on the reduced record they make
+  the small models too contracting.  Mackey-Glass tau = 17 / 23 / 30, 10^5
+  samples, clean / 1 % / 5 % noise, seed 7 (benchmarks/faithful_noise.py): the
+  m = 5 choice on the raw record for every m gave m_d 2/none/none, 2/4/none,
+  2/4/4 (tau = 23 at 1 %: ridge 0.1, lambda_1 of m = 2 0.0008 per step against
+  0.0088 clean); per m on the fitted series 2/3/none, 2/2/3, 2/2/2 (0.0089; the generic
+  :class:`~skdelay._model.ModelOptions` 2/2/none, 2/2/3, 2/2/3);
 * everything computed is returned (:class:`FaithfulnessResult`: the models,
-  the runs and the spectra), so an analysis never fits, runs or computes a
-  spectrum twice.
+  the runs, the spectra and the settings), so an analysis never fits, runs or
+  computes a spectrum twice.
 """
 
 from __future__ import annotations
@@ -48,6 +58,7 @@ from ._iterate import iterate
 from ._lyapunov import covering_spectrum
 from ._memo import BoundedStore
 from ._model import ModelOptions, fit_delay_model, resolve_model, self_query_index
+from ._model_selection import select_model_options
 from ._neighbours import Standardiser
 from ._sampling import white_noise_level
 from ._selection import forecast_error_curve
@@ -271,7 +282,8 @@ class FaithfulnessResult:
     Attributes
     ----------
     table : pandas.DataFrame
-        One row per ``m``: ``tau``, ``status`` (a sentence), ``faithful``,
+        One row per ``m``: ``tau``, ``n_neighbors`` and ``ridge`` (the
+        model's settings), ``status`` (a sentence), ``faithful``,
         ``marginal`` (it fails only criteria its runs cannot decide),
         ``n_runs`` (the free runs behind the verdict), ``collapsed_at`` (run
         step or NaN), ``observation_noise`` (the noise added to the runs:
@@ -298,6 +310,12 @@ class FaithfulnessResult:
     denoised : bool
         Whether the models were fitted on noise-reduced data (the noise
         exceeded :data:`DENOISE_ABOVE` of the data's standard deviation).
+    options : dict
+        Per ``m``: the :class:`~skdelay._model.ModelOptions` its model was
+        fitted with.
+    selection : dict
+        Per ``m``: the :class:`~skdelay._model_selection.ModelSelection` behind
+        its options (empty unless ``select_model``).
     """
 
     table: pd.DataFrame
@@ -308,6 +326,8 @@ class FaithfulnessResult:
     spectra: dict = field(default_factory=dict, repr=False)
     noise_level: float = 0.0
     denoised: bool = False
+    options: dict = field(default_factory=dict, repr=False)
+    selection: dict = field(default_factory=dict, repr=False)
 
     def __iter__(self):
         yield self.table
@@ -631,8 +651,9 @@ def _minimal_m(table):
 
 
 def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_min=1,
-                      model=None, free_runs=None, spectrum=None, sample_dt=1.0, control=None,
-                      random_state=None, n_jobs=None, progress=None):
+                      model=None, select_model=False, free_runs=None, spectrum=None,
+                      sample_dt=1.0, control=None, random_state=None, n_jobs=None,
+                      progress=None):
     """Smallest window length ``m`` whose iterated models reproduce the data.
 
     For ``m = m_min .. m_max``: fit ``Pipeline(TwoWindowEmbedding(m, tau_m),
@@ -679,6 +700,12 @@ def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_mi
     model : ModelOptions, default=None
         Neighbourhood size, ridge and Theiler window of the models (None:
         ``ModelOptions()``).
+    select_model : bool, default=False
+        Choose each ``m``'s neighbourhood size and ridge by time-series
+        cross-validation (:func:`~skdelay._model_selection.select_model_options`,
+        ``model`` supplying the Theiler window) on the series the models are
+        fitted on -- the noise-reduced one where the models are (see the
+        module notes); ``FaithfulnessResult.selection`` keeps the tables.
     free_runs : FreeRunOptions, default=None
         Length and number of the free runs, the cross-prediction window,
         noise reduction and clipping (None: ``FreeRunOptions()``).
@@ -761,27 +788,35 @@ def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_mi
             "seed": seed, "supports": _Supports()}
     reference, bands = _reference_bands(segs, **dist)
     window = max(2 * max(taus.values()), 200)
-    models = {m: fit_delay_model(s, m, taus[m], model) for m in m_values}
     # the runs are observed like the data, with the noise that the residuals of the largest
     # model imply: the smaller ones can under-estimate it (Mackey-Glass tau = 17, 3e4
     # samples, 5 % noise: m = 1 gives 0.026, m = 3 0.047, m = 5 0.049 of the true 0.050)
     # both estimates are upper bounds: the residuals include the model error, the
     # differences the signal's roughness (the laser's spikes)
+    probe = fit_delay_model(s, m_max, taus[m_max], model)
     floor, resolved = white_noise_level(s)
-    noise = min(noise_level(models[m_max], s, random_state=seed), floor)  # data units
+    noise = min(noise_level(probe, s, random_state=seed), floor)  # data units
     spread = float(np.std(s_units)) * unit  # (the squares of data at 1e-300 underflow)
     denoised = bool(denoise is True or (denoise == "auto" and resolved
                                         and noise > DENOISE_ABOVE * spread))
+    say = progress or (lambda _msg: None)
     fit_s = s
     if denoised:  # errors in variables: fit on noise-reduced data
-        say = progress or (lambda _msg: None)
         say(f"noise {noise / spread:.2%} of the standard deviation: fitting the models on "
             f"noise-reduced data")
         fit_s = _denoised(s)
-        models = {m: fit_delay_model(fit_s, m, taus[m], model) for m in m_values}
+    options, selection = dict.fromkeys(m_values, model), {}
+    if select_model:  # per m, on the series the models are fitted on (module notes)
+        say(f"model settings: cross-validating neighbours and ridge for m = "
+            f"{m_values[0]}..{m_values[-1]}" + (" on the noise-reduced data" if denoised else ""))
+        for m in m_values:
+            selection[m] = select_model_options(fit_s, m, taus[m], base=model,
+                                                random_state=seed, n_jobs=n_jobs)
+            options[m] = selection[m].options
+    models = {m: (probe if fit_s is s and m == m_max and options[m] == model
+                  else fit_delay_model(fit_s, m, taus[m], options[m])) for m in m_values}
     obs_rng = np.random.default_rng(seed)
     rows, runs, spectra, steps_done = {}, {}, {}, {}
-    say = progress or (lambda _msg: None)
     for m in m_values:
         t_m = taus[m]
         dim = required_lags(m, t_m)
@@ -789,7 +824,8 @@ def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_mi
         say(f"m = {m}: free runs of {length} steps ({n_runs} at a time while they disagree, "
             f"at most {n_runs * MAX_BATCHES}), then the Lyapunov spectrum")
         runs[m], row = [], {"tau": t_m, "collapsed_at": np.nan, "status": "",
-                            "observation_noise": np.nan, "clipped": 0}
+                            "observation_noise": np.nan, "clipped": 0,
+                            "n_neighbors": options[m].neighbours(m), "ridge": options[m].ridge}
         # a resolved noise floor is the noise; an unresolved one only bounds it, so the
         # runs are also observed without noise and the better-matching level is kept (one
         # level for all criteria; the table says which)
@@ -876,8 +912,8 @@ def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_mi
             table.loc[m, "status"] += (f" ({n_clip} of {steps_done[m]} run steps clipped to "
                                        "the data's range)")
     m_d, reason = _minimal_m(table)
-    cols = ["tau", "status", "faithful", "marginal", "n_runs", "collapsed_at", "clipped",
-            "observation_noise"]
+    cols = ["tau", "n_neighbors", "ridge", "status", "faithful", "marginal", "n_runs",
+            "collapsed_at", "clipped", "observation_noise"]
     for c in CRITERIA:
         cols += [c, f"{c}_band", f"{c}_pass"]
     cols += ["lambda_1", "d_ky", "h_ks", "n_positive"]
@@ -897,4 +933,4 @@ def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_mi
         table.attrs["control_pass"] = {k: bool(v <= bands[k]) for k, v in scores.items()}
     return FaithfulnessResult(table=table, m_d=m_d, reason=reason, models=models,
                               runs=runs, spectra=spectra, noise_level=noise,
-                              denoised=denoised)
+                              denoised=denoised, options=options, selection=selection)

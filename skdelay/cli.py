@@ -243,8 +243,9 @@ def build_parser():
     an.add_argument("--time-unit", default="time unit", metavar="NAME",
                     help="name of the unit of --dt used in every label, e.g. us or s")
     an.add_argument("--select-model", action="store_true",
-                    help="choose the neighbours and ridge by time-series cross-validation of "
-                         "one-step and iterated forecasts (overrides --neighbors/--ridge)")
+                    help="choose each m's neighbours and ridge by time-series cross-validation "
+                         "of one-step and iterated forecasts on the series its model is fitted "
+                         "on (overrides --neighbors/--ridge)")
     an.add_argument("--step", type=_int_at_least(1), default=None, metavar="H",
                     help="analyse every H-th sample (default: chosen from the data; 1 "
                          "unless the record is oversampled)")

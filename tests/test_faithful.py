@@ -221,6 +221,34 @@ def test_noise_is_estimated_and_large_noise_is_reduced_before_the_fits(mg17_nois
         replace(runs, denoise="yes")
 
 
+def test_model_settings_are_cross_validated_per_m_on_the_series_the_models_fit(mg17_noisy):
+    """With ``select_model`` each m gets its own neighbours and ridge, chosen on the series
+    its model is fitted on: the noise-reduced one at 5 % noise.  Chosen on the raw record
+    they are the heavy smoothing the noise calls for, which makes the models fitted on the
+    reduced record too contracting."""
+    x = mg17_noisy[0.05]
+    res = minimal_embedding(x, tau=17, m_min=1, m_max=3, select_model=True, random_state=0,
+                            free_runs=FreeRunOptions(n_steps=3000, n_runs=1))
+    assert res.denoised and sorted(res.selection) == [1, 2, 3]
+    for m, sel in res.selection.items():
+        chosen = sel.table.loc[sel.table["chosen"]].iloc[0]
+        # the model of this m was fitted with its own choice, and the table says so
+        assert res.options[m] == sel.options
+        assert res.table.loc[m, "n_neighbors"] == chosen["n_neighbors"] == sel.options.neighbours(m)
+        assert res.table.loc[m, "ridge"] == chosen["ridge"]
+        assert res.models[m][-1].n_neighbors == chosen["n_neighbors"]
+        # scored on the noise-reduced series: the best one-step error (in standard
+        # deviations) lies far below the 5 % noise that every forecast of the raw record
+        # carries in its target
+        assert sel.table["one_step"].min() < 0.5 * 0.05
+    # without select_model every m keeps the given settings
+    plain = minimal_embedding(x, tau=17, m_min=2, m_max=2, random_state=0,
+                              model=ModelOptions(per_parameter=6.0),
+                              free_runs=FreeRunOptions(n_steps=3000, n_runs=1))
+    assert not plain.selection and plain.options[2] == ModelOptions(per_parameter=6.0)
+    assert plain.table.loc[2, "n_neighbors"] == 30
+
+
 @pytest.mark.parametrize("denoised", [True, False])
 def test_report_says_when_the_models_were_fitted_on_noise_reduced_data(denoised):
     from types import SimpleNamespace

@@ -93,12 +93,18 @@ def test_model_settings_by_cross_validation_are_used_and_reported():
                 random_state=1)
     res = analyze_series(x, m=(2, 3), tau_min=8, tau_max=30, quick=True, select_model=True)
     table = res.model_selection
-    assert table is not None and int(table["chosen"].sum()) == 1
-    best = table[table["chosen"]].iloc[0]
-    # the chosen setting has the smallest summed relative error of the grid
-    total = table["one_step"] / table["one_step"].min() + table["iterated"] / table[
-        "iterated"].min()
-    assert total.idxmin() == best.name
+    assert table is not None and sorted(set(table["m"])) == [2, 3]
+    for m, grid in table.groupby("m"):  # one choice per window length
+        assert int(grid["chosen"].sum()) == 1
+        best = grid[grid["chosen"]].iloc[0]
+        # the chosen setting has the smallest summed relative error of its grid
+        total = grid["one_step"] / grid["one_step"].min() + grid["iterated"] / grid[
+            "iterated"].min()
+        assert total.idxmin() == best.name
+        # ... and is the one the model of that m was fitted with
+        assert res.validation.loc[m, "n_neighbors"] == best["n_neighbors"]
+        assert res.validation.loc[m, "ridge"] == best["ridge"]
+    best = table[table["chosen"] & (table["m"] == 3)].iloc[0]  # the reported model's
     assert res.options["ridge"] == best["ridge"]
     assert res.options["per_parameter"] == pytest.approx(best["per_parameter"])
 
