@@ -34,7 +34,7 @@ Guarantees:
   samples, clean / 1 % / 5 % noise, seed 7 (benchmarks/faithful_noise.py): the
   m = 5 choice on the raw record for every m gave m_d 2/none/none, 2/4/none,
   2/4/4 (tau = 23 at 1 %: ridge 0.1, lambda_1 of m = 2 0.0008 per step against
-  0.0088 clean); per m on the fitted series 2/3/none, 2/2/3, 2/2/2 (0.0089; the generic
+  0.0088 clean); per m on the fitted series 2/2/none, 2/2/2, 2/2/2 (0.0091; the generic
   :class:`~skdelay._model.ModelOptions` 2/2/none, 2/2/3, 2/2/3);
 * everything computed is returned (:class:`FaithfulnessResult`: the models,
   the runs, the spectra and the settings), so an analysis never fits, runs or

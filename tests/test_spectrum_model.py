@@ -121,3 +121,35 @@ def test_selections_at_extreme_scales_equal_those_at_unit_scale(mg, factor):
     ref, got = select_spectrum_model(mg, 17, **kw), select_spectrum_model(mg * factor, 17, **kw)
     assert got.options == ref.options
     np.testing.assert_allclose(got.table["error"], ref.table["error"], rtol=1e-12)
+
+
+def _cv_results(one, few):
+    """A GridSearchCV ``cv_results_`` of the forecast selection: per-fold errors of the
+    settings (k, ridge) = (10, 1e-3), (20, 1e-3), (40, 1e-3), (20, 1e-1)."""
+    one, few = np.asarray(one, dtype=float), np.asarray(few, dtype=float)  # (folds, settings)
+    res = {"param_model__n_neighbors": np.array([10, 20, 40, 20]),
+           "param_model__ridge": np.array([1e-3, 1e-3, 1e-3, 1e-1]),
+           "mean_test_one_step": -one.mean(axis=0), "mean_test_iterated": -few.mean(axis=0)}
+    for i in range(one.shape[0]):
+        res[f"split{i}_test_one_step"], res[f"split{i}_test_iterated"] = -one[i], -few[i]
+    return res
+
+
+def test_the_one_standard_error_rule_takes_the_smoothest_tie_and_nothing_worse():
+    from skdelay._model_selection import _one_se, _pick
+
+    few = [[1.0, 1.0, 1.0, 1.0]] * 3
+    # k = 10 is best on average; k = 20 is within the folds' spread of it, k = 40 and the
+    # large ridge are clearly worse: the rule takes k = 20, the smoothest of the tie
+    one = [[1.00, 1.02, 1.50, 1.60], [1.10, 1.12, 1.60, 1.70], [0.90, 0.92, 1.40, 1.50]]
+    total, se, within = _one_se(_cv_results(one, few))
+    np.testing.assert_allclose(total, [2.0, 2.02, 2.5, 2.6])
+    assert se == pytest.approx(np.std([2.0, 2.1, 1.9], ddof=1) / np.sqrt(3), rel=1e-9)
+    assert list(within) == [True, True, False, False]
+    assert _pick(_cv_results(one, few)) == 1
+    # the same means with folds that agree closely: k = 20 is no longer a tie
+    tight = [[1.000, 1.020, 1.50, 1.60], [1.001, 1.021, 1.50, 1.60], [0.999, 1.019, 1.50, 1.60]]
+    assert _pick(_cv_results(tight, few)) == 0
+    # a tie in k is broken by the larger ridge
+    one = [[1.00, 1.01, 1.50, 1.01], [1.10, 1.11, 1.60, 1.11], [0.90, 0.91, 1.40, 0.91]]
+    assert _pick(_cv_results(one, few)) == 3
