@@ -759,6 +759,8 @@ def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_mi
         if not isinstance(value, kind):
             raise TypeError(f"{name} must be a {kind.__name__}, got {type(value).__name__}; "
                             f"pass {name}={kind.__name__}(...).")
+    if not isinstance(select_model, (bool, np.bool_)):
+        raise TypeError(f"select_model must be True or False, got {select_model!r}.")
     n_steps, n_runs, chi_m = free_runs.n_steps, free_runs.n_runs, free_runs.chi_m
     denoise, clip_to_range = free_runs.denoise, free_runs.clip_to_range
     m_values = list(range(m_min, m_max + 1))

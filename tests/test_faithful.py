@@ -247,6 +247,8 @@ def test_model_settings_are_cross_validated_per_m_on_the_series_the_models_fit(m
                               free_runs=FreeRunOptions(n_steps=3000, n_runs=1))
     assert not plain.selection and plain.options[2] == ModelOptions(per_parameter=6.0)
     assert plain.table.loc[2, "n_neighbors"] == 30
+    with pytest.raises(TypeError, match="select_model must be True or False"):
+        minimal_embedding(x, tau=17, m_max=2, select_model="yes")
 
 
 @pytest.mark.parametrize("denoised", [True, False])
