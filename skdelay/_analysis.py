@@ -445,7 +445,9 @@ class AnalysisOptions:
     select_model : bool
         Choose the models' neighbourhood size and ridge by time-series
         cross-validation (:func:`~skdelay._model_selection.select_model_options`)
-        for every ``m``, on the series its model is fitted on (see
+        for every ``m`` (default; off in the quick preset, and when
+        :func:`analyze_series` is given ``n_neighbors`` or ``ridge`` without
+        ``select_model``), on the series its model is fitted on (see
         :func:`~skdelay.dynamics.minimal_embedding`); the tables are kept in
         ``AnalysisResult.model_selection`` and ``options`` reports the largest
         ``m``'s settings (the model whose spectrum is reported).
@@ -470,7 +472,7 @@ class AnalysisOptions:
     n_spectrum_steps: int | None = None
     n_validation: int | None = None
     step: int | None = None
-    select_model: bool = False
+    select_model: bool = True
     time_unit: str = "time unit"
     refine: bool = True
 
@@ -479,7 +481,7 @@ class AnalysisOptions:
         """Small settings for previews and tests (about 10x faster): a few per cent
         precision in sigma and the exponents instead of about one."""
         base = cls(n_queries=QUICK_QUERIES, n_run=QUICK_RUN, n_runs=2,
-                   n_spectrum_steps=QUICK_SPECTRUM_STEPS, refine=False)
+                   n_spectrum_steps=QUICK_SPECTRUM_STEPS, refine=False, select_model=False)
         return replace(base, **changes)
 
     def resolved(self, n):
@@ -514,6 +516,11 @@ def _options_from(options, quick, overrides):
     if options is None:
         options = AnalysisOptions.quick() if quick else AnalysisOptions()
     model = {k: overrides.pop(k) for k in list(overrides) if k in _MODEL_KEYS}
+    # neighbours or a ridge set by the user are kept: they switch the cross-validated
+    # choice off unless select_model is asked for as well
+    if ("select_model" not in overrides
+            and any(model.get(k) is not None for k in ("n_neighbors", "ridge"))):
+        overrides["select_model"] = False
     model = {k: v for k, v in model.items() if v is not None or k == "n_neighbors"}
     if model:
         overrides["model"] = replace(options.model, **model)

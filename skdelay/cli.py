@@ -235,17 +235,20 @@ def build_parser():
     an.add_argument("--n-queries", type=_int_at_least(100), default=None, metavar="Q",
                     help="query points per scan cell (default: automatic)")
     an.add_argument("--neighbors", type=_int_at_least(2), default=None, metavar="K",
-                    help="neighbours of the local linear models (default 4 (2 m + 1))")
-    an.add_argument("--ridge", type=_positive_float, default=1e-3,
-                    help="relative ridge of the local fits (default 1e-3; noisy data: 1e-2..1e-1)")
+                    help="neighbours of the local linear models (default: cross-validated, "
+                         "or 4 (2 m + 1) with --no-select-model or --quick)")
+    an.add_argument("--ridge", type=_positive_float, default=None,
+                    help="relative ridge of the local fits (default: cross-validated, or 1e-3 "
+                         "with --no-select-model or --quick)")
     an.add_argument("--flow", action="store_true",
                     help="the data sample a continuous-time flow: pin one exponent to zero")
     an.add_argument("--time-unit", default="time unit", metavar="NAME",
                     help="name of the unit of --dt used in every label, e.g. us or s")
-    an.add_argument("--select-model", action="store_true",
+    an.add_argument("--select-model", action=argparse.BooleanOptionalAction, default=None,
                     help="choose each m's neighbours and ridge by time-series cross-validation "
                          "of one-step and iterated forecasts on the series its model is fitted "
-                         "on (overrides --neighbors/--ridge)")
+                         "on (default: on, off with --quick or when --neighbors/--ridge are "
+                         "given; --select-model overrides those)")
     an.add_argument("--step", type=_int_at_least(1), default=None, metavar="H",
                     help="analyse every H-th sample (default: chosen from the data; 1 "
                          "unless the record is oversampled)")
@@ -353,7 +356,8 @@ def _prepare_analyze(args):
         result = _analysis.analyze_series(
             series.to_numpy(), **options, quick=args.quick, n_jobs=args.n_jobs,
             n_neighbors=args.neighbors, ridge=args.ridge, flow=args.flow,
-            select_model=args.select_model, step=args.step, time_unit=args.time_unit,
+            **({} if args.select_model is None else {"select_model": args.select_model}),
+            step=args.step, time_unit=args.time_unit,
             random_state=args.seed,
             verbose=0 if args.quiet else 10, progress=say,
             name=f"{Path(args.file).name}" + (f" [{series.name}]" if args.column else ""),

@@ -149,3 +149,19 @@ def test_smooth_at_step_tells_a_finely_sampled_flow_from_a_rough_record(dt, smoo
     noise, resolved = white_noise_level(x)
     assert resolved and (noise < 0.01) == smooth
     assert smooth_at_step(x) == smooth
+
+
+def test_settings_are_cross_validated_by_default_unless_the_user_sets_them():
+    from skdelay._analysis import AnalysisOptions, _options_from
+
+    assert AnalysisOptions().select_model and not AnalysisOptions.quick().select_model
+    assert _options_from(None, False, {}).select_model
+    # neighbours or a ridge given by the user are kept (the choice is off) ...
+    for given in ({"n_neighbors": 30}, {"ridge": 0.1}):
+        opts = _options_from(None, False, dict(given))
+        assert not opts.select_model
+        assert getattr(opts.model, next(iter(given))) == next(iter(given.values()))
+    # ... unless the choice is asked for as well; None (a CLI default) sets nothing
+    assert _options_from(None, False, {"ridge": 0.1, "select_model": True}).select_model
+    assert _options_from(None, False, {"n_neighbors": None, "ridge": None}).select_model
+    assert not _options_from(None, True, {}).select_model
