@@ -812,6 +812,8 @@ def minimal_embedding(series, *, tau=None, tau_grid=range(1, 101), m_max=5, m_mi
         say(f"model settings: cross-validating neighbours and ridge for m = "
             f"{m_values[0]}..{m_values[-1]}" + (" on the noise-reduced data" if denoised else ""))
         for m in m_values:
+            if m != m_values[0]:  # one line per m: a 10^6 record takes ~7 s per m
+                say(f"model settings for m = {m}")
             selection[m] = select_model_options(fit_s, m, taus[m], base=model,
                                                 random_state=seed, n_jobs=n_jobs)
             options[m] = selection[m].options
