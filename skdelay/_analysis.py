@@ -527,6 +527,9 @@ def _options_from(options, quick, overrides):
 
     if "m" in overrides:
         overrides["m"] = tuple(np.atleast_1d(overrides["m"]).tolist())
+    for name in ("flow", "select_model", "refine"):
+        if name in overrides and not isinstance(overrides[name], (bool, np.bool_)):
+            raise TypeError(f"{name} must be True or False, got {overrides[name]!r}.")
     return replace(options, **overrides)
 
 

@@ -165,3 +165,5 @@ def test_settings_are_cross_validated_by_default_unless_the_user_sets_them():
     assert _options_from(None, False, {"ridge": 0.1, "select_model": True}).select_model
     assert _options_from(None, False, {"n_neighbors": None, "ridge": None}).select_model
     assert not _options_from(None, True, {}).select_model
+    with pytest.raises(TypeError, match="select_model must be True or False"):
+        _options_from(None, False, {"select_model": "yes"})
