@@ -4,9 +4,19 @@ One locator for every caller (the delay scan, :class:`~skdelay.DelaySelectorCV`,
 the analysis, the faithful-model search and the gap diagnosis):
 
 * **centre** -- the depth-weighted centroid of the contiguous run of delays
-  around the minimum where ``sigma <= L = min + level * (baseline - min)``,
-  ``baseline`` the median of the scanned curve (crossings interpolated
-  linearly).  A delay dip is lopsided -- a gentle flank on the short-``tau``
+  around the minimum where ``sigma <= L = min + level * (rim - min)``
+  (crossings interpolated linearly).  ``rim`` is the median of the scanned
+  curve -- or, where the run below that median's level would span several
+  valleys, the lower of the dip's two shoulders (:func:`_rim`): walking out of
+  the dip, the highest error before the curve falls back significantly.  A
+  wide scan of a record whose error grows with ``tau`` (Mackey-Glass scanned
+  to 20 times its delay, as its autocorrelation's strongest revival asks) has
+  a median far above the dip's rim: on clean Mackey-Glass tau = 17 (2*10^4
+  samples, 12 bit, tau = 1..300, grid minimum at 17) the median's level gave
+  centres of 28-37 with half-widths of 27-39 samples, the shoulders 16.5-16.7
+  with 1.1-3.2.  A single valley keeps the median's level (its centre is what
+  the gap diagnosis's delay and timebase searches were calibrated on).
+  A delay dip is lopsided -- a gentle flank on the short-``tau``
   side, a cliff on the long side -- so the run is taken in the lower third
   and weighted towards its bottom, where the windows holding the delayed pair
   lie.  For odd ``m >= 3`` that plateau is centred half a sample after the
@@ -48,6 +58,15 @@ DIP_ALPHA = 0.01
 #: (Mackey-Glass and the laser: 20-90 %; flat curves of an oversampled record: < 5 %);
 #: the value is not yet calibrated on a population of records without a delay.
 MIN_RELATIVE_DEPTH = 0.1
+#: A dip's shoulder (:func:`_shoulder`) is where the curve, walking out of the dip, falls
+#: back below its highest value so far by more than this many combined standard errors of
+#: the two cells (a fall within the noise is no shoulder: 3 standard errors are exceeded by
+#: chance in 0.1 % of the steps) ...
+SHOULDER_SE = 3.0
+#: ... and by more than this fraction of that highest value's height above the dip's
+#: minimum (the few-percent undulations of a smooth curve, see MIN_RELATIVE_DEPTH, are
+#: no shoulder either).
+SHOULDER_FALL = 0.1
 #: Parametric-bootstrap draws for the standard error of the centre.
 N_BOOTSTRAP = 200
 #: Scale factor of the median absolute deviation to a Gaussian standard deviation.
@@ -82,11 +101,48 @@ class Dip:
         return float(math.hypot(self.half_width, self.centre_se))
 
 
-def _run_around_minimum(taus, c, level):
-    """Centre, half-width and edge flag of the run below ``level`` around the minimum."""
+def _shoulder(c, se, i0, step):
+    """The dip's shoulder on one side (``step`` -1: shorter delays, +1: longer), or None.
+
+    Walks from the minimum ``i0`` outwards, keeping the highest error met so far;
+    the shoulder is that highest value once the curve falls back below it by more
+    than :data:`SHOULDER_SE` combined standard errors and :data:`SHOULDER_FALL` of its
+    height above the minimum.  None when the curve never falls back before the edge
+    of the scan: the dip is open on that side.
+    """
+    top = c[i0]
+    itop = i0
+    j = i0 + step
+    while 0 <= j < c.size:
+        if c[j] > top:
+            top, itop = c[j], j
+        else:
+            fall = top - c[j]
+            if (fall > SHOULDER_SE * math.hypot(se[itop], se[j])
+                    and fall > SHOULDER_FALL * (top - c[i0])):
+                return float(top)
+        j += step
+    return None
+
+
+def _rim(c, se, i0):
+    """The level a dip is measured from: the median of the curve, or the lower shoulder
+    where that lies below it (the median's run would cross into the next valley).  An
+    open side (no shoulder before the edge) does not count: a minimum in a valley that
+    runs to the end of the scan still reaches it, and no dip is located."""
+    median = float(np.median(c))
+    if se is None or not np.all(np.isfinite(se)):
+        return median
+    closed = [v for v in (_shoulder(c, se, i0, -1), _shoulder(c, se, i0, +1)) if v is not None]
+    return min([median] + closed)
+
+
+def _run_around_minimum(taus, c, level, se=None):
+    """Centre, half-width and edge flag of the run below ``level`` around the minimum
+    (``level`` a fraction of the way from the minimum to :func:`_rim`)."""
     i0 = int(np.argmin(c))
     lo = c[i0]
-    lev = lo + level * (np.median(c) - lo)
+    lev = lo + level * (_rim(c, se, i0) - lo)
     left = i0
     while left > 0 and c[left - 1] <= lev:
         left -= 1
@@ -188,7 +244,7 @@ def locate_dip(taus, values, *, se=None, level=1 / 3, shift=0.0, alpha=DIP_ALPHA
     se = _roughness_se(c) if se is None else np.asarray(se, dtype=np.float64)
     if se.shape != c.shape:
         raise ValueError(f"se must have the shape of values {c.shape}, got {se.shape}.")
-    centre, half, i0, at_edge = _run_around_minimum(taus, c, level)
+    centre, half, i0, at_edge = _run_around_minimum(taus, c, level, se)
     baseline = float(np.median(c))
     depth = baseline - float(c[i0])
     noise = math.hypot(float(se[i0]), float(np.median(se))) if np.all(np.isfinite(se)) \
@@ -214,7 +270,7 @@ def locate_dip(taus, values, *, se=None, level=1 / 3, shift=0.0, alpha=DIP_ALPHA
     if np.all(np.isfinite(se)) and np.any(se > 0):
         rng = np.random.default_rng(random_state)
         draws = c + se * rng.standard_normal((N_BOOTSTRAP, c.size))
-        centres = [_run_around_minimum(taus, d, level)[0] for d in draws]
+        centres = [_run_around_minimum(taus, d, level, se)[0] for d in draws]
         centre_se = float(np.std(centres, ddof=1))
     centre += shift
     near = np.flatnonzero(np.abs(taus - centre) < 1.0)

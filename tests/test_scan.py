@@ -7,6 +7,7 @@ import pytest
 from _dde import measured_mackey_glass
 from joblib import parallel_config
 
+from skdelay._dips import locate_dip
 from skdelay._embedding import required_lags
 from skdelay._local_linear import LocalLinearDelayMap
 from skdelay._scan import ScanOptions, default_n_candidates, neighbourhood_mode
@@ -128,6 +129,45 @@ def test_mackey_glass_dips_are_significant():
     # sigma ~ 0.006-0.015; 2000 queries give a relative standard error of a few percent
     rel = se / sel.forecast_error_
     assert np.all((rel > 0.003) & (rel < 0.1))
+
+
+def test_a_narrow_dip_on_a_rising_curve_is_measured_from_its_own_rim():
+    # a notch at 17.3 (width 1.2) on an error that rises and undulates with tau, scanned to
+    # 300: the whole scan's median lies far above the notch's shoulders, and a level taken
+    # from it spanned the neighbouring valleys too (centre 16.1, half-width 4.8)
+    taus = np.arange(1, 301)
+    rng = np.random.default_rng(3)
+    se = np.full(taus.size, 2e-5)
+    c = (0.001 + 1e-5 * taus + 0.01 * np.exp(-taus / 1.5) + 2e-4 * np.sin(2 * np.pi * taus / 20)
+         - 0.0006 * np.exp(-0.5 * ((taus - 17.3) / 1.2) ** 2)
+         + se * rng.standard_normal(taus.size))
+    dip = locate_dip(taus, c, se=se)
+    assert dip.significant and dip.tau_min == 17 and dip.tau_best == 17
+    assert abs(dip.centre - 17.3) < 0.5 and 0.5 <= dip.half_width < 2.5
+    # the depth (significance) is still read against the whole scan's median
+    assert dip.baseline == pytest.approx(np.median(c))
+    # a single valley keeps the median's level: the same notch without the undulation
+    # and trend, scanned over 1..40, gives the same run whichever level is used
+    flat = 0.001 - 0.0006 * np.exp(-0.5 * ((taus[:40] - 17.3) / 1.2) ** 2)
+    single = locate_dip(taus[:40], flat, se=se[:40])
+    assert abs(single.centre - 17.3) < 0.1
+
+
+def test_a_wide_scan_of_clean_mackey_glass_finds_its_delay():
+    # the analysis scans Mackey-Glass tau = 17 to its strongest autocorrelation revival
+    # (~300 samples); before the dip's own rim, this gave centres of 28-37 +- 27-39
+    from skdelay.systems import MackeyGlass, measure
+
+    s = measure(MackeyGlass(tau=17.0).simulate(20_000, random_state=11), bits=12,
+                random_state=12)
+    curve = forecast_error_curve(s, m=(2, 5), tau=range(1, 301), n_queries=1500,
+                                 refine=False, random_state=0)
+    dips = locate_dips(curve)
+    print(dips[["delay", "half_width", "tau_min", "tau_best", "significant"]])
+    assert dips["significant"].all()
+    assert np.all(np.abs(dips["delay"] - 17) < 1.0)
+    assert np.all(dips["half_width"] < 4.0)
+    assert np.all(np.abs(dips["tau_best"] - 17) <= 1)
 
 
 @pytest.mark.parametrize("kind", ["ar1", "oversampled"])
