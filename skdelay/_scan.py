@@ -392,11 +392,14 @@ class ScanResult:
     Arrays are ``(n_splits, n_m, n_tau)``: ``error`` (rms one-step error),
     ``se`` (its standard error), ``n_queries`` and ``exact`` (fraction of
     provably exact neighbourhoods); ``coarse`` ``(n_m, n_tau)`` marks cells not
-    refined beyond the coarse pass.
+    refined beyond the coarse pass; ``batch_msq`` ``(n_splits, n_m, n_tau,
+    N_BATCHES)`` holds each cell's mean squared error per query batch (NaN: no
+    such batch), for the bootstrap of the dip centre (:mod:`skdelay._dips`).
     """
 
     error: np.ndarray
     se: np.ndarray
+    batch_msq: np.ndarray
     n_queries: np.ndarray
     exact: np.ndarray
     coarse: np.ndarray
@@ -1053,6 +1056,15 @@ class _Shared:
             self.folder = None
 
 
+def batch_means(sq, n_q):
+    """Mean squared error per batch ``(n_cells, n_batches)`` from the per-batch sums
+    ``sq`` of ``n_q`` queries (NaN for a batch without queries)."""
+    n_b = sq.shape[1]
+    counts = np.bincount(_batch_ids(n_q, n_b), minlength=n_b)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(counts > 0, sq / np.maximum(counts, 1), np.nan)
+
+
 def cell_stats(sq, n_q):
     """rms error and its standard error from per-batch sums of squared errors.
 
@@ -1072,15 +1084,12 @@ def cell_stats(sq, n_q):
     >>> bool(abs(rms[0] - 1) < 3 * se[0]), bool(0.005 < se[0] < 0.015)  # ~ 1 / sqrt(2 n)
     (True, True)
     """
-    n_b = sq.shape[1]
-    counts = np.bincount(_batch_ids(n_q, n_b), minlength=n_b)
-    msq = sq.sum(axis=1) / n_q
-    rms = np.sqrt(msq)
-    used = counts > 0
+    rms = np.sqrt(sq.sum(axis=1) / n_q)
+    means = batch_means(sq, n_q)
+    used = np.bincount(_batch_ids(n_q, sq.shape[1]), minlength=sq.shape[1]) > 0
     if used.sum() < 2:
         return rms, np.full(rms.shape, np.nan)
-    means = sq[:, used] / counts[used]
-    se_msq = means.std(axis=1, ddof=1) / math.sqrt(used.sum())
+    se_msq = means[:, used].std(axis=1, ddof=1) / math.sqrt(used.sum())
     with np.errstate(divide="ignore", invalid="ignore"):
         se = np.where(rms > 0, se_msq / (2 * rms), 0.0)
     return rms, se
@@ -1130,6 +1139,7 @@ def scan_series(s, ms, taus, splits, options, *, random_state=None, n_jobs=None,
     taus = np.asarray(taus, dtype=np.int64)
     err = np.full((n_split, n_m, n_tau), np.nan)
     se = np.full_like(err, np.nan)
+    bmsq = np.full(err.shape + (N_BATCHES,), np.nan)
     nq = np.zeros(err.shape, dtype=np.int64)
     exact = np.zeros_like(err)
     seg_len, radius = {}, opt.radius
@@ -1239,6 +1249,8 @@ def scan_series(s, ms, taus, splits, options, *, random_state=None, n_jobs=None,
             rms, sem = cell_stats(sq, q_t.size)
             err[split, j, c] = rms
             se[split, j, c] = sem
+            bmsq[split, j, c] = np.nan
+            bmsq[split, j, c, :sq.shape[1]] = batch_means(sq, q_t.size)
             nq[split, j, c] = q_t.size
             exact[split, j, c] = n_ex / q_t.size
         shared.release(arrays)
@@ -1316,8 +1328,8 @@ def scan_series(s, ms, taus, splits, options, *, random_state=None, n_jobs=None,
     n_all = np.array([[per_m[int(m)][1].size for m in ms] for (_, _, per_m) in plans])
     # coarse: some split still forecasts only the coarse subset of its rows there
     coarse = np.any((nq == n_coarse) & (n_coarse < n_all[:, :, None]), axis=0)
-    return ScanResult(error=err, se=se, n_queries=nq, exact=exact, coarse=coarse,
-                      segment_length=seg_len, radius=radius)
+    return ScanResult(error=err, se=se, batch_msq=bmsq, n_queries=nq, exact=exact,
+                      coarse=coarse, segment_length=seg_len, radius=radius)
 
 
 def _curve_and_se(err, se):

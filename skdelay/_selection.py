@@ -28,7 +28,7 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 
 from skdelay._checks import check_params, check_positive_int, check_random_state, check_series
 from skdelay._correlation import autocorrelation
-from skdelay._dips import locate_dips
+from skdelay._dips import batch_table, locate_dips
 from skdelay._embedding import TwoWindowEmbedding, required_lags, two_window_columns
 from skdelay._local_linear import LocalLinearDelayMap
 from skdelay._neighbours import Standardiser
@@ -192,7 +192,9 @@ def forecast_error_curve(series, m=(2, 3, 4, 5), tau=range(1, 101), *, n_neighbo
         ``n_queries`` (coarse queries per ``m``), ``segment_length`` (per
         ``m``), ``theiler_window``, ``radius``, ``exact`` (fraction of the
         queries of each cell whose neighbours are provably the exact k-NN,
-        same shape) and ``exact_fraction`` (its mean over ``tau``, per ``m``).
+        same shape), ``exact_fraction`` (its mean over ``tau``, per ``m``) and
+        ``batch_msq`` (each cell's mean squared error per query batch, for the
+        bootstrap of the dip centre, :func:`skdelay._dips.batch_table`).
 
     Raises
     ------
@@ -242,6 +244,7 @@ def forecast_error_curve(series, m=(2, 3, 4, 5), tau=range(1, 101), *, n_neighbo
     out = _frame(err / z_std, ms, taus)
     out.attrs.update(
         se=_frame(se / z_std, ms, taus), coarse=_frame(res.coarse, ms, taus),
+        batch_msq=batch_table(res.batch_msq / z_std ** 2, ms, taus),
         queries=_frame(res.n_queries[0], ms, taus), exact=_frame(res.exact[0], ms, taus),
         n_queries={int(mm): int(res.n_queries[0, j].min()) for j, mm in enumerate(ms)},
         segment_length=res.segment_length, theiler_window=w,
@@ -563,7 +566,7 @@ class DelaySelectorCV(RegressorMixin, BaseEstimator):
                               for tr, te in splits], opts,
                 random_state=self.random_state, n_jobs=self.n_jobs, verbose=self.verbose,
                 progress=self.progress)
-            err, se = res.error, res.se
+            err, se, bm = res.error, res.se, res.batch_msq
             attrs = {"segment_length": res.segment_length,
                      "queries": _frame(res.n_queries[0], ms, taus),
                      "coarse": _frame(res.coarse, ms, taus),
@@ -578,9 +581,12 @@ class DelaySelectorCV(RegressorMixin, BaseEstimator):
                 if self.cv is None else None
             est = self._model(n, w or 0, splits)
             err, se = self._scan_columns(X, y, ms, taus, splits, est, w)
+            bm = None  # an estimator's own fits: no query batches
             scale = y.std()
             attrs = {"theiler_window": w}
         scale = scale if scale > 0 else 1.0
+        if bm is not None:
+            attrs["batch_msq"] = batch_table(bm / scale ** 2, ms, taus)
         self._store(err / scale, se / scale, ms, taus, attrs)
         best = self.best_params_
         self.best_estimator_ = Pipeline([

@@ -153,6 +153,34 @@ def test_a_narrow_dip_on_a_rising_curve_is_measured_from_its_own_rim():
     assert abs(single.centre - 17.3) < 0.1
 
 
+def test_the_centre_error_from_query_batches_matches_the_spread_over_records():
+    # every cell of a scan forecasts the same queries, so a heavy-tailed per-query factor
+    # moves the whole curve together: it inflates each cell's standard error but not the
+    # dip's position.  Resampling the query batches (the same batches at every delay)
+    # must give the spread of the centre over independent records; redrawing each cell
+    # independently within its standard error overstates it (here ~3x)
+    taus = np.arange(1.0, 81.0)
+    shape = 1.0 - 0.3 * np.exp(-0.5 * ((taus - 30.3) / 2.0) ** 2) + 0.002 * taus
+    n_q, n_b = 3200, 32
+
+    def record(seed):
+        rng = np.random.default_rng(seed)
+        g = rng.exponential(size=n_q) ** 2
+        sq = g[:, None] * shape ** 2 * (1 + 0.3 * rng.standard_normal((n_q, taus.size)))
+        b = sq.reshape(n_b, n_q // n_b, taus.size).mean(axis=1).T  # (n_tau, n_batches)
+        c = np.sqrt(b.mean(axis=1))
+        se = b.std(axis=1, ddof=1) / np.sqrt(n_b) / (2 * c)
+        boot = locate_dip(taus, c, se=se, batch_msq=b[None], random_state=seed)
+        redraw = locate_dip(taus, c, se=se, random_state=seed)
+        return boot.centre, boot.centre_se, redraw.centre_se
+
+    centre, boot_se, redraw_se = np.array([record(s) for s in range(20)]).T
+    spread = centre.std(ddof=1)
+    assert abs(centre.mean() - 30.3) < 0.2
+    assert 0.5 < np.median(boot_se) / spread < 2.0
+    assert np.median(redraw_se) / spread > 2.0
+
+
 def test_a_wide_scan_of_clean_mackey_glass_finds_its_delay():
     # the analysis scans Mackey-Glass tau = 17 to its strongest autocorrelation revival
     # (~300 samples); before the dip's own rim, this gave centres of 28-37 +- 27-39
@@ -168,6 +196,11 @@ def test_a_wide_scan_of_clean_mackey_glass_finds_its_delay():
     assert np.all(np.abs(dips["delay"] - 17) < 1.0)
     assert np.all(dips["half_width"] < 4.0)
     assert np.all(np.abs(dips["tau_best"] - 17) <= 1)
+    # an honest error bar: the centre is known to a fraction of a sample (the scan's
+    # query batches resampled); redrawing each cell independently gave 9-68 samples
+    assert np.all(dips["centre_se"] < 0.5)
+    assert np.all(dips["delay_error"] < 4.0)
+    assert np.all(np.abs(dips["delay"] - 17) < dips["delay_error"])
 
 
 @pytest.mark.parametrize("kind", ["ar1", "oversampled"])
