@@ -77,7 +77,14 @@ the delta method, ``se(sigma) = se(mean e^2) / (2 sigma)``.
 Refinement: a coarse pass forecasts ``n_queries`` random rows for every cell;
 then the taus around each dip are recomputed with :data:`REFINE_GROWTH` times
 more queries (nested sets, up to all rows) until the dip centre's standard
-error (:func:`skdelay._dips.locate_dips`) is below ``target_centre_se``.
+error (:func:`skdelay._dips.locate_dips`) is below ``target_centre_se``.  That
+error comes from resampling the cells' query batches (``centre_error=
+"batches"``, the default) or, more conservatively, from redrawing each cell
+within its standard error (``"redraws"``), which overstates it on curves with
+several valleys: clean Mackey-Glass tau = 17 (10^5 samples, m = 2..5, tau =
+1..384, 2000 coarse queries) refined 432 cells with 12.4*10^6 forecasts in
+97 s under "redraws", none (3.1*10^6 forecasts, 32 s) under "batches", with
+the same centres within 0.17 samples and centre errors of 0.02-0.14.
 Under ``search="auto"`` the taus around each significant dip that the
 candidate lists approximated are then recomputed with the tree search and the
 same queries (:func:`_polish`): the lists' errors are small but not uniform in
@@ -107,7 +114,7 @@ from numba import njit
 from scipy.spatial import cKDTree
 
 from skdelay._checks import check_positive_int, check_random_state
-from skdelay._dips import locate_dips
+from skdelay._dips import batch_table, locate_dips
 from skdelay._embedding import second_window_start, two_window_columns
 from skdelay._kdtree import (
     box_dist2,
@@ -301,6 +308,9 @@ class ScanOptions:
         Recompute the taus around each dip with more queries (see the module notes).
     target_centre_se : float, default=TARGET_CENTRE_SE
         Refinement stops when every dip centre's standard error is below this.
+    centre_error : {"batches", "redraws"}, default="batches"
+        The centre error that refinement targets and that sets how far around
+        the dip it and the polish reach (see the module notes).
 
     Examples
     --------
@@ -324,6 +334,7 @@ class ScanOptions:
     n_queries: int | None = None
     refine: bool = True
     target_centre_se: float = TARGET_CENTRE_SE
+    centre_error: str = "batches"
 
     def __post_init__(self):
         k = check_positive_int(self.k, name="n_neighbors")
@@ -356,6 +367,9 @@ class ScanOptions:
         if not isinstance(self.target_centre_se, Real) or not self.target_centre_se > 0:
             raise ValueError(f"target_centre_se must be > 0 samples, got "
                              f"{self.target_centre_se!r}.")
+        if self.centre_error not in ("batches", "redraws"):
+            raise ValueError(f"centre_error must be 'batches' or 'redraws', got "
+                             f"{self.centre_error!r}.")
         for name, value in (("k", k), ("theiler", theiler), ("n_candidates", n_cand),
                             ("n_queries", n_queries), ("order", int(self.order)),
                             ("ridge", float(self.ridge)), ("refine", bool(self.refine)),
@@ -1318,9 +1332,10 @@ def scan_series(s, ms, taus, splits, options, *, random_state=None, n_jobs=None,
             run(coarse_cells, parallel)
             n_coarse = nq.copy()
             if opt.refine and n_tau >= 3:
-                _refine(err, se, nq, plans, ms, taus, opt, run, parallel)
+                bm = bmsq if opt.centre_error == "batches" else None
+                _refine(err, se, bm, nq, plans, ms, taus, opt, run, parallel)
                 if opt.search == "auto" and radius is None:
-                    _polish(err, se, exact, nq, ms, taus, opt, run, parallel)
+                    _polish(err, se, bm, exact, nq, ms, taus, opt, run, parallel)
     finally:
         shared.close()
         if bar is not None:
@@ -1338,7 +1353,7 @@ def _curve_and_se(err, se):
     return err.mean(axis=0), np.sqrt(np.sum(se ** 2, axis=0)) / n_split
 
 
-def _dip_cells(err, se, ms, taus):
+def _dip_cells(err, se, bmsq, ms, taus):
     """Per ``m``: the dip's centre standard error, the tau indices around its centre
     that a redrawn curve could put its dip run on (None: no dip, or a dip at the grid's
     edge) and whether the dip is significant."""
@@ -1347,7 +1362,8 @@ def _dip_cells(err, se, ms, taus):
     curve, curve_se = _curve_and_se(err, se)
     fe = pd.DataFrame(curve.T, index=pd.Index(taus, name="tau"), columns=pd.Index(ms, name="m"))
     sef = pd.DataFrame(np.nan_to_num(curve_se.T, nan=0.0), index=fe.index, columns=fe.columns)
-    dips = locate_dips(fe, se=sef)
+    batches = None if bmsq is None else batch_table(bmsq, ms, taus)
+    dips = locate_dips(fe, se=sef, batch_msq=batches)
     out = {}
     for m in ms:
         row = dips.loc[m]
@@ -1361,10 +1377,10 @@ def _dip_cells(err, se, ms, taus):
     return out
 
 
-def _refine(err, se, nq, plans, ms, taus, opt, run, parallel):
+def _refine(err, se, bmsq, nq, plans, ms, taus, opt, run, parallel):
     """More queries on the taus around each dip until its centre is known to target."""
     for _ in range(MAX_REFINE_ROUNDS):
-        dips = _dip_cells(err, se, ms, taus)
+        dips = _dip_cells(err, se, bmsq, ms, taus)
         cells = []
         for j, m in enumerate(ms):
             centre_se, idx, _ = dips[int(m)]
@@ -1381,7 +1397,7 @@ def _refine(err, se, nq, plans, ms, taus, opt, run, parallel):
         run(cells, parallel)
 
 
-def _polish(err, se, exact, nq, ms, taus, opt, run, parallel):
+def _polish(err, se, bmsq, exact, nq, ms, taus, opt, run, parallel):
     """Exact neighbours (the tree search) on the taus around each dip, with the queries
     each cell already has.
 
@@ -1394,7 +1410,7 @@ def _polish(err, se, exact, nq, ms, taus, opt, run, parallel):
     cells is polished once more.
     """
     for _ in range(POLISH_ROUNDS):
-        dips = _dip_cells(err, se, ms, taus)
+        dips = _dip_cells(err, se, bmsq, ms, taus)
         cells = []
         for j, m in enumerate(ms):
             _, idx, significant = dips[int(m)]

@@ -181,17 +181,22 @@ def test_the_centre_error_from_query_batches_matches_the_spread_over_records():
     assert np.median(redraw_se) / spread > 2.0
 
 
-def test_a_wide_scan_of_clean_mackey_glass_finds_its_delay():
+@pytest.mark.parametrize(("seeds", "kw"), [
+    ((11, 12), {"m": (2, 5), "n_queries": 1500, "refine": False}),
+    # another record, fewer queries, refined: its m = 2 rim at tau = 19 falls back by only
+    # 1.9 independent standard errors, a significant fall paired over the query batches
+    ((5, 6), {"m": (2, 3, 4, 5), "n_queries": 500}),
+])
+def test_a_wide_scan_of_clean_mackey_glass_finds_its_delay(seeds, kw):
     # the analysis scans Mackey-Glass tau = 17 to its strongest autocorrelation revival
     # (~300 samples); before the dip's own rim, this gave centres of 28-37 +- 27-39
     from skdelay.systems import MackeyGlass, measure
 
-    s = measure(MackeyGlass(tau=17.0).simulate(20_000, random_state=11), bits=12,
-                random_state=12)
-    curve = forecast_error_curve(s, m=(2, 5), tau=range(1, 301), n_queries=1500,
-                                 refine=False, random_state=0)
+    s = measure(MackeyGlass(tau=17.0).simulate(20_000, random_state=seeds[0]), bits=12,
+                random_state=seeds[1])
+    curve = forecast_error_curve(s, tau=range(1, 301), random_state=0, **kw)
     dips = locate_dips(curve)
-    print(dips[["delay", "half_width", "tau_min", "tau_best", "significant"]])
+    print(dips[["delay", "half_width", "centre_se", "tau_best", "significant"]])
     assert dips["significant"].all()
     assert np.all(np.abs(dips["delay"] - 17) < 1.0)
     assert np.all(dips["half_width"] < 4.0)
@@ -201,6 +206,27 @@ def test_a_wide_scan_of_clean_mackey_glass_finds_its_delay():
     assert np.all(dips["centre_se"] < 0.5)
     assert np.all(dips["delay_error"] < 4.0)
     assert np.all(np.abs(dips["delay"] - 17) < dips["delay_error"])
+
+
+def test_refinement_targets_the_batch_centre_error_unless_told_otherwise():
+    # on a wide scan the independent redraws overstate the centre's error (other valleys),
+    # so refinement under centre_error="redraws" recomputes many cells for nothing
+    from skdelay.systems import MackeyGlass, measure
+
+    s = measure(MackeyGlass(tau=17.0).simulate(20_000, random_state=11), bits=12,
+                random_state=12)
+    kw = {"m": (2, 5), "tau": range(1, 301), "n_queries": 1500, "random_state": 0}
+    fast = forecast_error_curve(s, **kw)
+    slow = forecast_error_curve(s, centre_error="redraws", **kw)
+    n_fast = int(fast.attrs["queries"].to_numpy().sum())
+    n_slow = int(slow.attrs["queries"].to_numpy().sum())
+    print(n_fast, n_slow)
+    assert n_slow > 1.5 * n_fast
+    a, b = locate_dips(fast), locate_dips(slow)
+    assert np.all(a["centre_se"] < 0.2)
+    assert np.all(np.abs(a["delay"] - b["delay"]) < 2 * np.hypot(a["centre_se"], b["centre_se"]))
+    with pytest.raises(ValueError, match=r"centre_error must be 'batches' or 'redraws'"):
+        forecast_error_curve(s, centre_error="bootstrap", **kw)
 
 
 @pytest.mark.parametrize("kind", ["ar1", "oversampled"])
