@@ -33,6 +33,10 @@ __all__ = ["ModelEscapeError", "ModelEscapeWarning", "OffSupportWarning", "Traje
 #: Cached support guards of fitted maps (a guard costs a tree build and a probe search).
 _GUARDS = weakref.WeakKeyDictionary()
 
+#: Seconds before a free run's progress bar appears: the faithfulness search runs many
+#: short runs (the demo drew 27 000 bars of 50-step runs, 81 000 free-run bar lines and
+#: 8.4 MB of output in all), and a bar that would be gone within this time says nothing.
+FREE_RUN_BAR_DELAY = 0.5
 #: Steps of a free run per compiled call: the progress bar moves every ~0.1 s (a step
 #: costs 10-40 us at k = 20-44 in 4-10 dimensions, 2026-11-23) and the call overhead
 #: (~10 us) is lost in it.
@@ -168,9 +172,10 @@ def progress_bars(enabled=True, timings=None):
 
 
 @contextmanager
-def progress_bar(total, desc, progress=None, *, unit="step"):
+def progress_bar(total, desc, progress=None, *, unit="step", delay=0.0):
     """A tqdm bar (ETA on stderr) when ``progress`` is True, or None inside an enabled
-    :func:`progress_bars` block; otherwise an object whose ``update`` does nothing."""
+    :func:`progress_bars` block; otherwise an object whose ``update`` does nothing.
+    ``delay``: seconds before the bar appears (never, for a shorter task)."""
     if progress is None:
         scope = _PROGRESS.get()
         progress = scope is not None and scope[0]
@@ -179,7 +184,7 @@ def progress_bar(total, desc, progress=None, *, unit="step"):
         return
     from tqdm.auto import tqdm
 
-    bar = tqdm(total=total, desc=desc, unit=unit, leave=False, dynamic_ncols=True)
+    bar = tqdm(total=total, desc=desc, unit=unit, leave=False, dynamic_ncols=True, delay=delay)
     try:
         yield bar
     finally:
@@ -283,7 +288,7 @@ def run_model(guard, history, n_steps, lags, *, k, radius, ridge, order, kicks, 
     lags = np.asarray(lags, dtype=np.int64)
     n_done, code, n_clipped = 0, 0, 0
     clip_lo, clip_hi = (guard.range_lo, guard.range_hi) if clip else (-np.inf, np.inf)
-    with progress_bar(n_steps, "free run", progress) as bar:
+    with progress_bar(n_steps, "free run", progress, delay=FREE_RUN_BAR_DELAY) as bar:
         while n_done < n_steps and code == 0:  # in chunks, for the progress bar
             size = min(RUN_CHUNK, n_steps - n_done)
             done, code, clipped = _run(buf, n_hist + n_done, size, lags, guard.data,

@@ -24,7 +24,10 @@ def series():
     return _delay_map()
 
 
-def test_analyze_shows_bars_and_times_the_model_stage(series, capsys):
+def test_analyze_shows_bars_and_times_the_model_stage(series, capsys, monkeypatch):
+    import skdelay._iterate
+
+    monkeypatch.setattr(skdelay._iterate, "FREE_RUN_BAR_DELAY", 0.0)  # runs this short too
     messages = []
     res = analyze_series(series, m=(2, 3), tau_min=6, tau_max=18, quick=True,
                          progress=messages.append, verbose=1)
@@ -36,6 +39,24 @@ def test_analyze_shows_bars_and_times_the_model_stage(series, capsys):
     assert t["free_runs"] + t["spectra"] + t["fits_and_validation"] == pytest.approx(
         t["models"])
     assert t["models"] <= t["total"]
+
+
+def test_a_free_run_shorter_than_the_bar_delay_draws_no_bar(series, capsys, monkeypatch):
+    # the faithfulness search runs thousands of short runs: their bars were pure noise
+    from sklearn.pipeline import make_pipeline
+
+    import skdelay._iterate
+    from skdelay import LocalLinearDelayMap, TwoWindowEmbedding, lagged_windows
+    from skdelay.dynamics import iterate
+
+    X, y = lagged_windows(series, 25)
+    model = make_pipeline(TwoWindowEmbedding(m=2, tau=12),
+                          LocalLinearDelayMap(n_neighbors=20)).fit(X, y)
+    iterate(model, series[:200], 50, progress=True)
+    assert capsys.readouterr().err == ""
+    monkeypatch.setattr(skdelay._iterate, "FREE_RUN_BAR_DELAY", 0.0)
+    iterate(model, series[:200], 50, progress=True)
+    assert "free run" in capsys.readouterr().err
 
 
 def test_analyze_is_silent_without_progress(series, capsys):
