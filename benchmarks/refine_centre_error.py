@@ -28,7 +28,7 @@ import warnings
 import numpy as np
 import pandas as pd
 
-from skdelay._selection import forecast_error_curve, locate_dips
+from skdelay import forecast_error_curve, locate_dips
 from skdelay.systems import MackeyGlass, measure
 
 CASES = [("mackey_glass tau=17 clean", 17.0, 0.0, 384), ("mackey_glass tau=100 1 %", 100.0, 0.01, 250)]

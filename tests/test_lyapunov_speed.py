@@ -106,7 +106,7 @@ def test_chunked_free_run_keeps_the_escape_step(mg, monkeypatch):
     np.testing.assert_array_equal(chunked, whole)
 
 
-def test_progress_bars_only_when_asked(mg, capsys):
+def test_progress_bars_only_when_asked(mg, capsys, monkeypatch):
     model = _fit(mg[:5000], 2, 30, 10)
     iterate(model, mg[:100], 500)
     lyapunov_spectrum(model, mg[:5000], n_exponents=2)
@@ -114,6 +114,7 @@ def test_progress_bars_only_when_asked(mg, capsys):
     lyapunov_spectrum(model, mg[:5000], n_exponents=2, progress=True)
     assert "Jacobians" in capsys.readouterr().err
     timings = {}
+    monkeypatch.setattr(iterate_module, "FREE_RUN_BAR_DELAY", 0.0)  # a run this short too
     with progress_bars(enabled=True, timings=timings):
         iterate(model, mg[:100], 500)
         lyapunov_spectrum(model, mg[:5000], n_exponents=2)
