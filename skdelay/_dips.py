@@ -338,6 +338,12 @@ def locate_dip(taus, values, *, se=None, level=1 / 3, shift=0.0, alpha=DIP_ALPHA
                          f"and {c.shape}.")
     if c.size == 0:
         raise ValueError("the forecast-error curve is empty; scan at least 5 delays.")
+    if batch_msq is not None:
+        shape = np.shape(batch_msq)
+        if len(shape) != 3 or shape[1] != c.size:
+            raise ValueError(f"batch_msq must have shape (n_splits, {c.size}, n_batches) for "
+                             f"{c.size} delays, got {shape}; pass the scan's per-batch mean "
+                             "squared errors of these cells, or None.")
     if np.any(np.diff(taus) <= 0):
         # the dip's run and flanks are read along the array: unsorted delays misplace them
         raise ValueError("the delays tau must be strictly increasing (one value each); sort "
@@ -459,6 +465,10 @@ def locate_dips(forecast_error, *, level=1 / 3, se=None, alpha=DIP_ALPHA,
         se = forecast_error.attrs.get("se")
     if batch_msq is None:
         batch_msq = forecast_error.attrs.get("batch_msq")
+    elif not (isinstance(batch_msq, pd.DataFrame) and batch_msq.columns.nlevels == 3):
+        raise TypeError(f"batch_msq must be a DataFrame with columns (m, split, batch) as "
+                        f"skdelay._dips.batch_table builds it, got {type(batch_msq).__name__}; "
+                        "or leave it None to use forecast_error.attrs['batch_msq'].")
     try:
         taus = np.asarray(forecast_error.index, dtype=np.float64)
     except (TypeError, ValueError):

@@ -3,6 +3,7 @@
 import warnings
 
 import numpy as np
+import pandas as pd
 import pytest
 from _dde import measured_mackey_glass
 from joblib import parallel_config
@@ -175,6 +176,11 @@ def test_the_centre_error_from_query_batches_matches_the_spread_over_records():
         return boot.centre, boot.centre_se, redraw.centre_se
 
     centre, boot_se, redraw_se = np.array([record(s) for s in range(20)]).T
+    # batches that do not belong to the curve are refused, not silently ignored
+    with pytest.raises(ValueError, match=r"batch_msq must have shape \(n_splits, 80, n_batches\)"):
+        locate_dip(taus, shape, batch_msq=np.ones((1, 79, 32)))
+    with pytest.raises(TypeError, match=r"batch_msq must be a DataFrame with columns \(m, split"):
+        locate_dips(pd.DataFrame({2: shape}, index=taus), batch_msq=np.ones((1, 80, 32)))
     spread = centre.std(ddof=1)
     assert abs(centre.mean() - 30.3) < 0.2
     assert 0.5 < np.median(boot_se) / spread < 2.0
