@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import math
 import time
+import warnings
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
@@ -29,9 +30,15 @@ from ._faithful import DEFAULT_RUN, FreeRunOptions, SpectrumOptions, minimal_emb
 from ._io import atomic_directory, write_json
 from ._iterate import progress_bars
 from ._model import ModelOptions
-from ._report import ordinal, step_sentence, write_analysis_report
+from ._report import (
+    delay_sentence,
+    ordinal,
+    spectrum_caveat,
+    step_sentence,
+    write_analysis_report,
+)
 from ._sampling import MAX_STEP, sampling_step, smooth_at_step
-from ._selection import forecast_error_curve
+from ._selection import NoDipWarning, forecast_error_curve, no_dip_message
 
 __all__ = [
     "AnalysisOptions",
@@ -341,11 +348,14 @@ class AnalysisResult:
                 f"m={m}: {row.delay:.1f} +- {row.delay_error:.1f}"
                 + ("" if row.significant else " (no significant dip)")
                 for m, row in self.delays.iterrows()),
+            *([] if self.delays["significant"].astype(bool).any()
+              else [delay_sentence(self)]),
             (f"model m={r['m']}, tau={r['delay']}: {r['N']} positive exponent(s), "
              f"lambda_max = {r['lambda_max']:.4g} /{self.time_unit}, "
              f"D_KY {'=' if r['D_KY_closed'] else '>='} {r['D_KY']:.2f}, "
              f"h_KS = {r['h_KS']:.4g} /{self.time_unit}, "
-             f"D_KY/tau = {r['D_KY/tau']:.4g} /{self.time_unit}"),
+             f"D_KY/tau = {r['D_KY/tau']:.4g} /{self.time_unit}"
+             + (f"; but {spectrum_caveat(self)}" if spectrum_caveat(self) else "")),
             "minimal faithful m: " + (str(self.minimal_m) if self.minimal_m is not None
                                       else f"none up to m={max(self.spectra)} "
                                            f"({self.minimal_m_reason})"),
@@ -647,6 +657,11 @@ def analyze_series(series, options=None, *, quick=False, random_state=0, n_jobs=
                 f"step {step} stands")
     step = opts.step
     dips["tau_used"] = dips["tau_best"]
+    if not dips["significant"].astype(bool).any():
+        steps = ", ".join(map(str, tried))
+        warnings.warn(no_dip_message(dips, (
+            f"the delay is unknown (sampling steps tried: {steps}); the models use each m's "
+            "grid minimum of the forecast error")), NoDipWarning, stacklevel=2)
     timings["delay_scan"] = time.perf_counter() - t1
     ms, dt, n = opts.m, opts.sample_dt, s.size
 

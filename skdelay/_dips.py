@@ -377,7 +377,11 @@ def locate_dip(taus, values, *, se=None, level=1 / 3, shift=0.0, alpha=DIP_ALPHA
         z = depth / noise if noise > 0 else (math.inf if depth > 0 else 0.0)
     threshold = float(norm.isf(alpha / c.size))
     reason = ""
-    if at_edge:
+    if at_edge and taus[i0] <= 1:
+        # a delay of one sample is no delay: nothing lies below it to scan
+        reason = ("the error is lowest at the shortest delay (1 sample): no delayed "
+                  "feedback shows in the forecasts")
+    elif at_edge:
         reason = ("the lowest error lies at the edge of the scanned delays; scan delays on "
                   "both sides of it")
     elif math.isnan(z):

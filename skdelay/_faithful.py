@@ -336,18 +336,33 @@ class FaithfulnessResult:
 
 # ----------------------------------------------------------------------------- collapse
 def _window_stds(x, window):
-    n = x.size // window
-    return x[:n * window].reshape(n, window).std(axis=1)
+    return _windows(x, window).std(axis=1)
 
 
-def _max_revival(x, min_lag, max_lag):
+def _max_revival(x, min_lag, max_lag, *, with_lag=False):
     """Largest autocorrelation at lags ``min_lag..max_lag`` (bias-corrected: a periodic
-    signal reaches 1 at every multiple of its period)."""
+    signal reaches 1 at every multiple of its period); ``with_lag``: also its lag."""
     acf = autocorrelation(x, max_lag)
     if acf.size <= min_lag:
-        return 0.0
+        return (0.0, 0) if with_lag else 0.0
     lags = np.arange(acf.size)
-    return float(np.max((acf * x.size / (x.size - lags))[min_lag:]))
+    corrected = (acf * x.size / (x.size - lags))[min_lag:]
+    best = int(np.argmax(corrected))
+    return (float(corrected[best]), min_lag + best) if with_lag else float(corrected[best])
+
+
+def _periodic_onset(run, period, window, level):
+    """First step from which ``run`` repeats itself with ``period``: the end of the last
+    window whose rms mismatch ``run[t] - run[t + period]`` exceeds ``level``."""
+    mismatch = run[period:] - run[:-period]
+    rms = np.sqrt(np.mean(_windows(mismatch, window) ** 2, axis=1))
+    above = np.flatnonzero(rms > level)
+    return 0 if above.size == 0 else int((above[-1] + 1) * window)
+
+
+def _windows(x, window):
+    n = x.size // window
+    return x[:n * window].reshape(n, window)
 
 
 def collapse_step(run, data, *, window, noise=0.0):
@@ -355,7 +370,10 @@ def collapse_step(run, data, *, window, noise=0.0):
 
     ``run`` without observation noise, ``data`` with measurement noise of
     standard deviation ``noise``.  Returns ``(step, kind)`` with ``kind`` in
-    {"fixed point", "periodic orbit"}.
+    {"fixed point", "periodic orbit"}: for a fixed point the first window that
+    goes quiet, for a periodic orbit the step from which the run repeats itself
+    (the orbit is recognised on the run's second half, so the step is at most
+    half the run).
     """
     run = np.asarray(run, dtype=float)
     if run.size < 2 * window:
@@ -375,8 +393,14 @@ def collapse_step(run, data, *, window, noise=0.0):
         return None
     signal = max(1.0 - noise ** 2 / max(float(np.var(data)), 1e-300), 1e-3)
     data_revival = _max_revival(data[:4 * tail.size], lo, hi) / signal
-    if _max_revival(tail, lo, hi) >= PERIODIC_ACF > data_revival:
-        return int(run.size // 2), "periodic orbit"
+    revival, period = _max_revival(tail, lo, hi, with_lag=True)
+    if revival >= PERIODIC_ACF > data_revival:
+        # the onset: where the run starts to repeat itself as closely as its second half
+        # does on average (a correlation rho at the period leaves an rms mismatch of
+        # std * sqrt(2 (1 - rho)); at most half the run, where the revival was measured)
+        level = float(np.std(tail)) * np.sqrt(2.0 * (1.0 - PERIODIC_ACF))
+        onset = _periodic_onset(run, period, window, level)
+        return min(onset, int(run.size // 2)), "periodic orbit"
     return None
 
 

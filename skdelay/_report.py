@@ -226,6 +226,26 @@ def faithful_sentence(result):
         f"{result.minimal_m_reason or 'see the table'}."
 
 
+def spectrum_caveat(result):
+    """Why the reported model's exponents may not describe an attractor ("" when they do).
+
+    The spectrum is computed from the fitted local maps along the data.  When the
+    model's own free runs collapse onto a fixed point or periodic orbit, or stop, the
+    model has no chaotic attractor, whatever those exponents say (a linear stochastic
+    process gives a positive one from its noise): the sentence says so.
+    """
+    table = getattr(result, "validation", None)
+    if table is None or result.m not in table.index or "status" not in table:
+        return ""
+    status = str(table.loc[result.m, "status"] or "")
+    if not any(word in status for word in ("collapsed", "stopped")):
+        return ""
+    what = status.split(": ", 1)[-1]
+    return (f"the free runs of this model do not stay on a chaotic attractor ({what}): these "
+            "exponents are those of its local maps along the data, not of an attractor of "
+            "the model")
+
+
 def ordinal(h):
     """``2nd``, ``3rd``, ``4th``, ``11th``, ``22nd`` ..."""
     h = int(h)
@@ -339,7 +359,8 @@ def analysis_sections(result, *, scale=1.0, unit="1/time unit", prefix=""):
         (f"{prefix}Delay: one-step forecast error",
          [_safe(fig_forecast_error, result), delays, _safe(fig_correlations, result)]),
         (f"{prefix}Lyapunov spectra, Kaplan-Yorke dimension, KS entropy",
-         [_safe(fig_spectra, result, scale, unit)]),
+         ([f"<p>For m = {result.m}, {html.escape(spectrum_caveat(result))}.</p>"]
+          if spectrum_caveat(result) else []) + [_safe(fig_spectra, result, scale, unit)]),
         (f"{prefix}Validation of the iterated models",
          [(f"<p>{html.escape(faithful_sentence(result))} Each model ran from several "
            "histories; a model is faithful when no run escapes or collapses and its "

@@ -54,6 +54,15 @@ class NoDipWarning(UserWarning):
     """No window length shows a significant forecast-error dip: the delay is unknown."""
 
 
+def no_dip_message(dips, consequence):
+    """The :class:`NoDipWarning` text: each m's reason (``dips["reason"]`` of
+    :func:`locate_dips`), what follows (``consequence``) and what to try."""
+    why = "; ".join(f"m={int(mm)}: {r}" for mm, r in dips["reason"].items())
+    return (f"no window length shows a significant forecast-error dip ({why}), so "
+            f"{consequence}. Try a longer record, a coarser sampling step (fewer samples per "
+            "delay), less measurement noise, or a wider tau range around the expected delay.")
+
+
 # ----------------------------------------------------------------------------- grids, options
 def as_grid(values, name):
     """Sorted unique positive ints; an int ``v`` means ``1..v``."""
@@ -657,14 +666,8 @@ class DelaySelectorCV(RegressorMixin, BaseEstimator):
             self.delay_error_ = float("nan")
             j, i = np.unravel_index(np.argmin(fe.to_numpy().T), (len(ms), len(taus)))
             self.best_params_ = {"m": int(ms[j]), "tau": int(taus[i])}
-            why = "; ".join(f"m={int(mm)}: {r}" for mm, r in dips["reason"].items())
-            warnings.warn(
-                f"no window length shows a significant forecast-error dip ({why}), so the delay "
-                "is unknown (delay_ = NaN). Try a longer record, a coarser sampling step (fewer "
-                "samples per delay), less measurement noise, or a wider tau range around the "
-                "expected delay.",
-                NoDipWarning, stacklevel=3,
-            )
+            warnings.warn(no_dip_message(dips, "the delay is unknown (delay_ = NaN)"),
+                          NoDipWarning, stacklevel=3)
         self.best_index_ = params.index(self.best_params_)
         self.best_score_ = float(results["mean_test_score"][self.best_index_])
 

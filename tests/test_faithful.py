@@ -112,7 +112,11 @@ def test_collapse_detector_fixed_point_and_periodic_orbit(mg17):
     step, kind = collapse_step(decay, data, window=200)
     assert kind == "fixed point" and 200 <= step < 3000  # e-folding time 500
     cycle = np.sin(2 * np.pi * np.arange(8000) / 50.0) * data.std() + data.mean()
-    assert collapse_step(cycle, data, window=200) == (4000, "periodic orbit")
+    assert collapse_step(cycle, data, window=200) == (0, "periodic orbit")
+    # chaos that settles onto the cycle at step 3000: the step is the onset, not the
+    # half of the run where the orbit was recognised
+    settling = np.concatenate([data[10_000:13_000], cycle[:5000]])
+    assert collapse_step(settling, data, window=200) == (3000, "periodic orbit")
     assert collapse_step(data[10_000:18_000], data, window=200) is None
     # a run of just two windows (a quick run at a long delay) has no lag beyond one window
     # in its second half: no periodic verdict, and no error

@@ -1,11 +1,20 @@
 """Report sentences follow the numbers they describe."""
 
+import warnings
 from types import SimpleNamespace
 
+import numpy as np
 import pandas as pd
 import pytest
 
-from skdelay._report import delay_sentence, faithful_sentence, revival_sentence
+from skdelay import NoDipWarning, analyze_series
+from skdelay._report import (
+    analysis_sections,
+    delay_sentence,
+    faithful_sentence,
+    revival_sentence,
+    spectrum_caveat,
+)
 
 
 def _result(delay=40.0, significant=True, minimal_m=None, reason=""):
@@ -48,3 +57,52 @@ def test_a_dip_of_another_window_length_is_named_not_denied():
     text = delay_sentence(res)
     assert "cannot tell" not in text and "m = 2: 39.6 +- 1.1" in text
     assert text.startswith("The forecast error of m = 5 shows no significant dip")
+
+
+def test_spectrum_caveat_only_for_a_model_without_an_attractor():
+    res = _result()
+    res.validation = pd.DataFrame({"status": [""]}, index=pd.Index([5], name="m"))
+    assert spectrum_caveat(res) == ""
+    res.validation.loc[5, "status"] = "not faithful: histogram 0.07 > 0.05"
+    assert spectrum_caveat(res) == ""  # a wrong histogram still has an attractor
+    res.validation.loc[5, "status"] = "not faithful: collapsed onto a fixed point at step 200"
+    text = spectrum_caveat(res)
+    assert "collapsed onto a fixed point at step 200" in text and "not of an attractor" in text
+
+
+def _ar2(n, seed):
+    """A linear stochastic AR(2) process: no delay, no chaos."""
+    rng = np.random.default_rng(seed)
+    x = np.zeros(n)
+    for t in range(2, n):
+        x[t] = 1.6 * x[t - 1] - 0.8 * x[t - 2] + rng.standard_normal()
+    return x
+
+
+def test_an_analysis_without_a_dip_warns_and_says_what_its_spectrum_is():
+    with pytest.warns(NoDipWarning, match="no window length shows a significant") as rec:
+        res = analyze_series(_ar2(6000, 5), quick=True, random_state=0)
+    assert "shortest delay" in str(rec[0].message)  # not "scan delays on both sides of 1"
+    assert not res.delays["significant"].any()
+    text = res.summary()
+    assert "the data cannot tell the delay" in text
+    # the AR(2) models' free runs decay onto the process's fixed point; the exponents of
+    # their local maps along the noisy data must not read as an attractor's
+    status = res.validation.loc[res.m, "status"]
+    print(text, status, sep="\n")
+    assert ("not of an attractor of the model" in text) == ("collapsed" in status)
+    assert "collapsed" in status
+    html = str(analysis_sections(res)[2][1])
+    assert "not of an attractor of the model" in html
+
+
+def test_an_analysis_with_a_dip_does_not_warn():
+    from skdelay.systems import MackeyGlass, measure
+
+    x = measure(MackeyGlass(tau=17.0).simulate(8000, random_state=0), noise=0.005,
+                random_state=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", NoDipWarning)
+        res = analyze_series(x, m=(2, 3), tau_max=40, quick=True, random_state=0)
+    assert res.delays["significant"].all()
+    assert "cannot tell" not in res.summary() and "not of an attractor" not in res.summary()
