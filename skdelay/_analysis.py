@@ -344,7 +344,8 @@ class AnalysisResult:
             (f"{self.name}: {self.n_record or self.series.size * self.step} samples, dt = "
              f"{self.sample_dt / self.step:g}"),
             *([step_sentence(self)] if step_sentence(self) else []),
-            "delay per m (samples): " + ", ".join(
+            ("delay per m (samples): " if self.step == 1 else
+             f"delay per m (in steps of {self.step} samples): ") + ", ".join(
                 f"m={m}: {row.delay:.1f} +- {row.delay_error:.1f}"
                 + ("" if row.significant else " (no significant dip)")
                 for m, row in self.delays.iterrows()),

@@ -100,6 +100,7 @@ def test_coarser_steps_are_tried_where_the_chosen_step_shows_no_dip(ikeda_fine):
     assert np.all(np.abs(good["delay"] - delay) <= 1.5)
     assert "no window length showed a significant forecast-error dip" in res.summary()
     assert "every 4th sample shows one" in res.summary() and res.step == 4
+    assert "delay per m (in steps of 4 samples): " in res.summary()
     assert res.summary_row()["steps_tried"] == list(res.steps_tried)
     d = res.to_dict()
     assert d["n_record"] == ikeda_fine.size and d["n_samples"] == res.series.size
