@@ -354,8 +354,10 @@ class AnalysisResult:
             (f"model m={r['m']}, tau={r['delay']}: {r['N']} positive exponent(s), "
              f"lambda_max = {r['lambda_max']:.4g} /{self.time_unit}, "
              f"D_KY {'=' if r['D_KY_closed'] else '>='} {r['D_KY']:.2f}, "
-             f"h_KS = {r['h_KS']:.4g} /{self.time_unit}, "
-             f"D_KY/tau = {r['D_KY/tau']:.4g} /{self.time_unit}"
+             f"h_KS = {r['h_KS']:.4g} /{self.time_unit}"
+             # the dimension density needs a delay: without a dip tau is the grid minimum
+             + (f", D_KY/tau = {r['D_KY/tau']:.4g} /{self.time_unit}"
+                if self.delays["significant"].astype(bool).any() else "")
              + (f"; but {spectrum_caveat(self)}" if spectrum_caveat(self) else "")),
             "minimal faithful m: " + (str(self.minimal_m) if self.minimal_m is not None
                                       else f"none up to m={max(self.spectra)} "

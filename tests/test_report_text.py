@@ -86,6 +86,7 @@ def test_an_analysis_without_a_dip_warns_and_says_what_its_spectrum_is():
     assert not res.delays["significant"].any()
     text = res.summary()
     assert "the data cannot tell the delay" in text
+    assert "D_KY/tau" not in text  # a dimension per delay needs a delay
     # the AR(2) models' free runs decay onto the process's fixed point; the exponents of
     # their local maps along the noisy data must not read as an attractor's
     status = res.validation.loc[res.m, "status"]
@@ -106,3 +107,4 @@ def test_an_analysis_with_a_dip_does_not_warn():
         res = analyze_series(x, m=(2, 3), tau_max=40, quick=True, random_state=0)
     assert res.delays["significant"].all()
     assert "cannot tell" not in res.summary() and "not of an attractor" not in res.summary()
+    assert "D_KY/tau = " in res.summary()
