@@ -174,15 +174,20 @@ def fig_space_time(result):
 def _row_table(result, scale=1.0, unit="1/time unit"):
     r = result.summary_row()
     ge = "" if r["D_KY_closed"] else ">= "
+    # without a significant dip the model's tau is the grid minimum, not a measured delay
+    any_dip = bool(result.delays["significant"].astype(bool).any())
+    measured = "" if r["delay_significant"] else " (no significant dip: the grid minimum)"
     rows = {
-        "delay [samples]": f"{r['delay']} +- {r['delay_error']:.1f}",
-        f"delay [{result.time_unit}]": f"{r['delay_time']:g}",
+        "delay [samples]": (f"{r['delay']} +- {r['delay_error']:.1f}" if not measured
+                            else f"{r['delay']}{measured}"),
+        f"delay [{result.time_unit}]": f"{r['delay_time']:g}{measured}",
         "window length m of the model": r["m"],
         "positive Lyapunov exponents N": r["N"],
         f"largest exponent lambda_max [{unit}]": f"{r['lambda_max'] * scale:.4g}",
         "Kaplan-Yorke dimension D_KY": f"{ge}{r['D_KY']:.2f}",
         f"KS entropy h_KS [{unit}]": f"{r['h_KS'] * scale:.4g}",
-        f"dimension density D_KY/tau [{unit}]": f"{ge}{r['D_KY/tau'] * scale:.4g}",
+        f"dimension density D_KY/tau [{unit}]": (f"{ge}{r['D_KY/tau'] * scale:.4g}" if any_dip
+                                                  else "- (no delay)"),
         "exponents computed": r["n_exponents"],
         "minimal faithful m (m_d)": "none" if r["minimal_m"] is None else r["minimal_m"],
     }

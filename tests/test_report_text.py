@@ -93,8 +93,11 @@ def test_an_analysis_without_a_dip_warns_and_says_what_its_spectrum_is():
     print(text, status, sep="\n")
     assert ("not of an attractor of the model" in text) == ("collapsed" in status)
     assert "collapsed" in status
-    html = str(analysis_sections(res)[2][1])
-    assert "not of an attractor of the model" in html
+    sections = analysis_sections(res)
+    assert "not of an attractor of the model" in str(sections[2][1])
+    table = sections[0][1][1]  # the summary table: no measured delay, no dimension density
+    assert table["delay [samples]"] == f"{res.delay} (no significant dip: the grid minimum)"
+    assert table["dimension density D_KY/tau [1/time unit]"] == "- (no delay)"
 
 
 def test_an_analysis_with_a_dip_does_not_warn():
