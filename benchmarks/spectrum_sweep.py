@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from scipy.signal import lfilter
 
 from skdelay import NoDipWarning, analyze_series
 from skdelay.systems import ElectroOpticOscillator, Ikeda, MackeyGlass, measure
@@ -49,11 +50,7 @@ CASES = {
 
 def ar2(n, seed):
     """x[t] = 1.6 x[t-1] - 0.8 x[t-2] + white noise: damped oscillation driven by noise."""
-    rng = np.random.default_rng(seed)
-    x = np.zeros(n)
-    for t in range(2, n):
-        x[t] = 1.6 * x[t - 1] - 0.8 * x[t - 2] + rng.standard_normal()
-    return x
+    return lfilter([1.0], [1.0, -1.6, 0.8], np.random.default_rng(seed).standard_normal(n))
 
 
 def ky(exponents):

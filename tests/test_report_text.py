@@ -6,6 +6,7 @@ from types import SimpleNamespace
 import numpy as np
 import pandas as pd
 import pytest
+from scipy.signal import lfilter
 
 from skdelay import NoDipWarning, analyze_series
 from skdelay._report import (
@@ -71,12 +72,9 @@ def test_spectrum_caveat_only_for_a_model_without_an_attractor():
 
 
 def _ar2(n, seed):
-    """A linear stochastic AR(2) process: no delay, no chaos."""
-    rng = np.random.default_rng(seed)
-    x = np.zeros(n)
-    for t in range(2, n):
-        x[t] = 1.6 * x[t - 1] - 0.8 * x[t - 2] + rng.standard_normal()
-    return x
+    """A linear stochastic AR(2) process, x[t] = 1.6 x[t-1] - 0.8 x[t-2] + e[t]: no delay,
+    no chaos."""
+    return lfilter([1.0], [1.0, -1.6, 0.8], np.random.default_rng(seed).standard_normal(n))
 
 
 def test_an_analysis_without_a_dip_warns_and_says_what_its_spectrum_is():
