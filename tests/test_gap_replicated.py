@@ -78,3 +78,35 @@ def test_the_report_says_why_a_gap_above_the_threshold_is_no_gap():
                     gap_before=3.0, gap_after=3.0, shrink=0.0,
                     significance=dict(sig, replicated=None))
     assert "the gap 3 is within the no-gap threshold 8.52" in low.headline()
+
+
+def test_a_far_off_bin_that_six_runs_drew_is_not_significant():
+    """A no-effect CO2-laser record (delay 150) with one autocorrelation lag more than
+    Z_LOCAL spreads from its six clean runs: against the calibration runs that lag lies
+    within Z_LOCAL, and nothing else is off, so the record shows no gap."""
+    from skdelay.gap._diagnose import Z_LOCAL
+    from skdelay.systems import CO2LaserFeedback
+
+    laser = CO2LaserFeedback(tau=150.0)
+    real = laser.simulate(6000, random_state=13 * 7919 + 13)
+    problem = GapProblem(real, laser, random_state=13, n_jobs=1)
+    sig = significance(problem)
+    assert sig["max_z"] > Z_LOCAL  # six runs: one lag far off ...
+    assert sig["far_z_calibrated"] < Z_LOCAL / 1.5  # ... not against the calibration runs
+    assert not sig["far_bin"] and not sig["lines"] and not sig["significant"]
+
+
+@pytest.mark.parametrize("effect, params", [
+    ("quantization", {"step": 0.06, "phase": 0.6}),
+    ("clipping", {"low": -float("inf"), "high": 1.5}),
+])
+def test_a_far_off_bin_of_the_record_stays_far_off(effect, params):
+    """A coarse ADC step (the record's value levels) and a clipped end (its pile-up) leave
+    bins far off the six runs; the calibration runs, clean as the six, keep them far off."""
+    from skdelay.gap._diagnose import Z_LOCAL, _far_bin_kept
+
+    x = get_effect(effect).apply(MG.simulate(N, random_state=814), params)
+    problem = GapProblem(x, MG, n_sims=6, random_state=3, n_jobs=1)
+    assert significance(problem)["max_z"] > Z_LOCAL
+    kept, z = _far_bin_kept(problem)
+    assert kept and z > 2 * Z_LOCAL

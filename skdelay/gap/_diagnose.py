@@ -189,6 +189,32 @@ def _fresh_gaps(scored, seed):
     return [_fresh_gap(problem, seed, chain) for problem, chain in scored]
 
 
+def _far_bin_kept(problem):
+    """Is the record's far-off bin (more than ``Z_LOCAL`` spreads from the clean runs) still
+    that far off against the calibration runs (:meth:`GapProblem.calibrated_z`)?  Returns
+    ``(kept, largest calibrated |z|)``; a far-off bin of a paired indicator (read against a
+    partner run) is kept as it is.
+
+    The clean runs are six; a bin's mean and spread then rest on few degrees of freedom, and
+    a record of the simulator itself lands far off now and then.  No-effect CO2-laser records
+    (delay 150, 6000 samples, seeds 0-19): 3 of 20 were called significant, two by a single
+    autocorrelation lag 9.9 and 11 spreads off (of the 36 clean runs of six of them, each
+    judged against the other five, two reached 8.5 and 19.1); against the 24 calibration
+    runs those lags lie 2.3 and 4.6 spreads off.  On 40 further records (seeds 20-59, not looked at before)
+    4 were significant, 2 with this check (the others: a spectral line, and a gap above
+    the threshold against fresh ensembles too); at delay 50 none of 30 either way, at delay
+    400 the same 3 of 30 (spectral lines).  A real narrow discrepancy (a clipped end's
+    pile-up, a coarse ADC step's levels) is the record's own and stays far off against any
+    number of runs (tests/test_gap_replicated.py).
+    """
+    far = [k for k, z in problem.before.z.items() if float(np.max(np.abs(z))) > Z_LOCAL]
+    if any(problem.indicators[k].paired for k in far):
+        return True, None
+    z = problem.calibrated_z(far)
+    top = max((float(np.max(np.abs(v))) for v in z.values()), default=0.0)
+    return bool(top > Z_LOCAL), top
+
+
 def significance(problem, parallel=None):
     """Is the real series distinguishable from the simulator's runs?
 
@@ -230,7 +256,12 @@ def significance(problem, parallel=None):
     # (skdelay.gap._range.excursion_tests)
     beyond, jumps, n_range = excursion_tests(problem.real, problem.base,
                                              problem.calibration_runs, CALIBRATION_RUNS)
-    local = bool(max_z > Z_LOCAL or lines or beyond["off"] or jumps["off"])
+    # a far-off bin that is the only local evidence must stay far off against the
+    # calibration runs: six runs estimate a bin's spread with few degrees of freedom
+    far, far_z = max_z > Z_LOCAL, None
+    if far and not (lines or beyond["off"] or jumps["off"]):
+        far, far_z = _far_bin_kept(problem)
+    local = bool(far or lines or beyond["off"] or jumps["off"])
     replicated = None
     by_gap = gap > threshold
     if by_gap and not local:
@@ -242,7 +273,8 @@ def significance(problem, parallel=None):
     other = by_gap or local
     return {"gap_before": gap, "null_median": level, "null_max": float(np.max(null)),
             "replicated": replicated,
-            "threshold": threshold, "max_z": max_z, "z_local": Z_LOCAL, "lines": lines,
+            "threshold": threshold, "max_z": max_z, "z_local": Z_LOCAL, "far_bin": bool(far),
+            "far_z_calibrated": far_z, "lines": lines,
             "dip_shift": dip_shift, "beyond_range": beyond["count"],
             "beyond_range_p": beyond["p_value"], "jumps": jumps["count"],
             "jumps_p": jumps["p_value"], "range_runs": n_range,
@@ -251,7 +283,7 @@ def significance(problem, parallel=None):
             "dip_only": bool(dip_shift and not other),
             # so are the excursions beyond the runs' range (see _spike_evidence_first)
             "spikes_only": bool((beyond["off"] or jumps["off"]) and not (
-                by_gap or dip_shift or lines or max_z > Z_LOCAL))}
+                by_gap or dip_shift or lines or far))}
 
 
 def _welch_log(x, sample_dt, nperseg=4096):

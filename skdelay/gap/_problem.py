@@ -526,6 +526,22 @@ class GapProblem:
             out.append(total)
         return np.array(out)
 
+    def calibrated_z(self, names):
+        """The record's z-scores of the indicators ``names`` against the calibration runs
+        (:meth:`calibration_runs`: the clean runs and the line scan's further ones), with
+        their spread estimated as for the clean runs.  ``{name: z}``; paired indicators
+        (read against a partner run) are left out.  Why: :func:`skdelay.gap._diagnose.
+        _far_bin_kept`.
+        """
+        runs = self.calibration_runs()
+        chosen = {k: self.indicators[k] for k in names if not self.indicators[k].paired}
+        out = {}
+        for k, (f, blocks) in profiles(chosen, runs, blocks=True).items():
+            mean, var = _spread(f, ensemble_stats(f, chosen[k], blocks)[1])
+            out[k] = zscores(self.real_features[k], mean, var, f.shape[0],
+                             self.real_var.get(k, 0.0))
+        return out
+
     def lacking_dips(self, chain):
         """The second dips of the real data that simulator + ``chain`` still lack.
 

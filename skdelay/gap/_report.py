@@ -234,7 +234,7 @@ class GapReport:
             return ""
         if s.get("lines"):
             what = "the record has a spectral line that the simulator runs lack"
-        elif s.get("max_z", 0.0) > s.get("z_local", np.inf):
+        elif s.get("far_bin", s.get("max_z", 0.0) > s.get("z_local", np.inf)):
             what = f"one bin lies {s['max_z']:.3g} spreads off"
         elif s.get("dip_shift"):
             what = "the forecast-error dip lies outside the runs' scatter"
@@ -255,7 +255,7 @@ class GapReport:
         of jumps: the gap within the no-gap threshold, no line, bin, or dip beyond chance."""
         s = self.significance
         return bool(self.gap_before <= s["threshold"] and not s.get("lines")
-                    and not s.get("max_z", 0.0) > s.get("z_local", np.inf)
+                    and not s.get("far_bin", s.get("max_z", 0.0) > s.get("z_local", np.inf))
                     and not s.get("dip_shift")
                     and (s.get("beyond_range_p", 1.0) < RANGE_ALPHA
                          or s.get("jumps_p", 1.0) < RANGE_ALPHA))
