@@ -183,19 +183,25 @@ def box_dist2(q, box_lo, box_hi, node):
 
 
 @njit(cache=True, inline="always")
-def insert_sorted(best_d, best_i, k, d, ident):
+def insert_sorted(best_d, best_i, k, d, ident, filled):
     """Insert ``(d, ident)`` into the ascending ``best_d[:k]`` (and ``best_i``), dropping the
-    last; the caller has checked ``d < best_d[k - 1]``.
+    last; the caller has checked ``d < best_d[k - 1]``.  ``filled``: how many slots hold a
+    neighbour (the others are ``inf``); returns the count after the insertion.
 
-    A shift rather than a heap: the callers read the neighbours nearest first.
+    A shift rather than a heap: the callers read the neighbours nearest first.  The shift
+    starts at the first empty slot: walking down from slot ``k - 1`` over the empty ones
+    cost ``k^2 / 2`` moves per search while the list fills (435 of about 1000 at k = 30),
+    6 % of the tree scan's time per query at m = 2 and 2 % at m = 5 (10^5 noisy 12-bit
+    Mackey-Glass points, every point a query, one thread; same neighbours, same order).
     """
-    pos = k - 1
+    pos = filled if filled < k else k - 1
     while pos > 0 and best_d[pos - 1] > d:
         best_d[pos] = best_d[pos - 1]
         best_i[pos] = best_i[pos - 1]
         pos -= 1
     best_d[pos] = d
     best_i[pos] = ident
+    return filled + 1 if filled < k else k
 
 
 @njit(cache=True)
@@ -209,6 +215,7 @@ def query_knn(data, tree, q, k, best_d, best_i, stack):
     for j in range(k):
         best_d[j] = np.inf
         best_i[j] = -1
+    filled = 0
     stack[0] = 0
     sp = 1
     while sp > 0:
@@ -224,7 +231,7 @@ def query_knn(data, tree, q, k, best_d, best_i, stack):
                     t = data[row, j] - q[j]
                     s += t * t
                 if s < best_d[k - 1]:
-                    insert_sorted(best_d, best_i, k, s, row)
+                    filled = insert_sorted(best_d, best_i, k, s, row, filled)
             continue
         a, b = left[node], right[node]
         da = box_dist2(q, box_lo, box_hi, a)
@@ -275,9 +282,7 @@ def _knn_seeded(sdata, sids, tree, q, k, t, theiler, bound, best_d, best_i, stac
                 ident = sids[p]
                 if theiler >= 0 and abs(ident - t) <= theiler:
                     continue
-                insert_sorted(best_d, best_i, k, s, ident)
-                if found < k:
-                    found += 1
+                found = insert_sorted(best_d, best_i, k, s, ident, found)
             continue
         a, b = left[node], right[node]
         da = box_dist2(q, box_lo, box_hi, a)

@@ -743,6 +743,7 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
             for x in range(k):
                 hd[x] = np.inf
                 hj[x] = -1
+            held = 0
             stack[0] = 0
             stack_d[0] = 0.0
             sp = 1
@@ -788,7 +789,7 @@ def tree_cells(s, U, q_t, db_t, m, starts, k, theiler, ridge, order, fallback, l
                             d2 = vq[m + lag] - s[j - c - lag]
                             acc += d1 * d1 + d2 * d2
                     if acc < hd[k - 1]:
-                        insert_sorted(hd, hj, k, acc, r)
+                        held = insert_sorted(hd, hj, k, acc, r, held)
             for x in range(k):  # the plain tree's order: nearest first, empty slots last
                 r = hj[x]
                 if r < 0:
