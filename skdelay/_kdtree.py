@@ -190,9 +190,11 @@ def insert_sorted(best_d, best_i, k, d, ident, filled):
 
     A shift rather than a heap: the callers read the neighbours nearest first.  The shift
     starts at the first empty slot: walking down from slot ``k - 1`` over the empty ones
-    cost ``k^2 / 2`` moves per search while the list fills (435 of about 1000 at k = 30),
-    6 % of the tree scan's time per query at m = 2 and 2 % at m = 5 (10^5 noisy 12-bit
-    Mackey-Glass points, every point a query, one thread; same neighbours, same order).
+    cost ``k^2 / 2`` moves per search while the list fills (435 of about 1000 at k = 30).
+    The same neighbours in the same order; on 10^5 noisy 12-bit Mackey-Glass points (every
+    point a query, one thread, the tree scan alone timed three times in turn) 3.66 -> 3.41
+    us per query and tau at m = 2 and 5.19 -> 5.10 at m = 5, a gain the whole scan's
+    benchmark does not resolve (benchmarks/out/delay_scan.txt, stop 78).
     """
     pos = filled if filled < k else k - 1
     while pos > 0 and best_d[pos - 1] > d:
