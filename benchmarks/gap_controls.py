@@ -8,7 +8,7 @@ does not depend on the candidates).  The table gives, per system, the records ca
 significant and the evidence behind each: ``gap`` (the gap above the no-gap threshold,
 replicated against fresh ensembles), ``line`` (a spectral line), ``bin`` (one bin far off),
 ``dip`` (the forecast-error dip moved), ``range`` (excursions beyond the runs' range).
-A diagnosis needs 20 delays of record: 6000 samples rule out the laser at delay 400.
+A diagnosis needs 20 delays of record: the laser at delay 400 needs ``--n 8000``.
 With ``--baseline REV`` the same records are diagnosed by the package as of git revision
 ``REV`` in the same run (a subprocess on a ``git archive`` of it).
 
@@ -61,15 +61,16 @@ def _evidence(sig):
     return "+".join(why)
 
 
-def measure(name, lo, hi, n_jobs):
-    """``{seed: (significant, evidence, max_z)}`` for the records ``lo .. hi - 1``."""
+def measure(name, lo, hi, n_jobs, n=N):
+    """``{seed: (significant, evidence, max_z)}`` for the records ``lo .. hi - 1`` of ``n``
+    samples."""
     from skdelay.gap import diagnose_gap
 
     warnings.simplefilter("ignore")
     system, dt = _system(name)
     out = {}
     for seed in range(lo, hi):
-        real = np.asarray(system.simulate(N, sample_dt=dt, random_state=seed * 7919 + 13))
+        real = np.asarray(system.simulate(n, sample_dt=dt, random_state=seed * 7919 + 13))
         rep = diagnose_gap(real, system, sample_dt=dt, effects=["measurement_noise"],
                            random_state=seed, n_jobs=n_jobs)
         sig = rep.significance
@@ -78,7 +79,7 @@ def measure(name, lo, hi, n_jobs):
     return out
 
 
-def _baseline(rev, specs, n_jobs):
+def _baseline(rev, specs, n_jobs, n):
     sys.path.insert(0, str(ROOT / "benchmarks"))
     from _revision import export_package
 
@@ -86,7 +87,7 @@ def _baseline(rev, specs, n_jobs):
         export_package(rev, tmp)
         env = dict(os.environ, PYTHONPATH=tmp, NUMBA_CACHE_DIR=str(Path(tmp) / "nc"))
         cmd = [sys.executable, str(Path(__file__).resolve()), "--worker",
-               "--n-jobs", str(n_jobs), "--systems", *specs]
+               "--n-jobs", str(n_jobs), "--n", str(n), "--systems", *specs]
         # not check=True: a failure raises below with the worker's own traceback
         res = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=tmp, check=False)
     if res.returncode:
@@ -100,27 +101,28 @@ def main(argv=None):
                     metavar="NAME:FIRST:STOP", help="laser<delay>, mg, ikeda or eo, and seeds")
     ap.add_argument("--baseline", metavar="REV")
     ap.add_argument("--n-jobs", type=int, default=2)
+    ap.add_argument("--n", type=int, default=N, help="samples per record")
     ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     specs = [(s.split(":")[0], int(s.split(":")[1]), int(s.split(":")[2])) for s in args.systems]
     if args.worker:
-        print(json.dumps({name: {str(k): v for k, v in measure(name, lo, hi, args.n_jobs).items()}
+        print(json.dumps({name: {str(k): v for k, v in measure(name, lo, hi, args.n_jobs, args.n).items()}
                           for name, lo, hi in specs}))
         return
     import skdelay
 
     print(f"# {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; skdelay from "
-          f"{Path(skdelay.__file__).parent}; {N} samples per record; load average "
+          f"{Path(skdelay.__file__).parent}; {args.n} samples per record; load average "
           f"{' / '.join(f'{v:.2f}' for v in os.getloadavg())}")
     shown = " ".join(sys.argv[1:] if argv is None else argv)
     print(f"# command: python benchmarks/gap_controls.py {shown}")
-    base = _baseline(args.baseline, args.systems, args.n_jobs) if args.baseline else None
+    base = _baseline(args.baseline, args.systems, args.n_jobs, args.n) if args.baseline else None
     print("| system | records | significant | evidence (seed: why) |"
           + (f" significant at {args.baseline} | evidence there |" if base else ""))
     print("|---|---|---|---|" + ("---|---|" if base else ""))
     for name, lo, hi in specs:
         t0 = time.perf_counter()
-        now = measure(name, lo, hi, args.n_jobs)
+        now = measure(name, lo, hi, args.n_jobs, args.n)
         row = (f"| {name} | {hi - lo} | {sum(v[0] for v in now.values())} | "
                + ", ".join(f"{k}: {v[1]}" for k, v in now.items() if v[0]) + " |")
         if base:
