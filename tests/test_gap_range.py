@@ -204,6 +204,8 @@ def test_a_fit_whose_runs_make_the_excursions_explains_a_record_with_no_other_ev
         def ensemble(self, chain, tier="full"):
             return spiky if chain[0][0].name == "outliers" else clean
 
+        chain_calibration = ensemble  # as many runs as the ensemble: the same verdicts
+
     table = pd.DataFrame({"effect": ["lowpass", "outliers"], "status": ["ok", "ok"],
                           "gap_after": [1.0, 2.0], "shrink": [0.2, 0.1],
                           "params": [{"cutoff": 0.4}, {"rate": 0.003, "size": 3.5}]})
@@ -219,6 +221,58 @@ def test_a_fit_whose_runs_make_the_excursions_explains_a_record_with_no_other_ev
     new, _, led = _spike_evidence_first(Problem(), {**sig, "spikes_only": False}, table,
                                         ["a", "b"], by_name)
     assert not led and list(new["effect"]) == ["lowpass", "outliers"]
+
+
+def test_a_candidate_settles_a_few_spikes_only_against_as_many_runs_as_found_them():
+    """Four spikes of 3.4-5.8 std on Ikeda (step 0.25, 6000 samples) are significant only
+    against the 24 calibration runs (six bound the runs' excursion rate at 0.5 per record:
+    p = 0.002 for four).  A candidate whose runs make no such jumps must not settle them on
+    its six runs alone: dynamical noise of 0.27 std did, on the held-out benchmark's record
+    (seed 23.8e6), and was named instead of the outliers."""
+    import pandas as pd
+
+    from skdelay.gap._diagnose import _spike_evidence_first
+    from skdelay.gap._lines import CALIBRATION_RUNS
+
+    ik = Ikeda()
+    out = get_effect("outliers")
+    spikes = {"rate": 0.0007, "size": 5.0}
+
+    def runs(seeds, spiky):
+        xs = [ik.simulate(6000, sample_dt=0.25, random_state=s) for s in seeds]
+        return [out.apply(x, spikes, sample_dt=0.25, random_state=s) if spiky else x
+                for s, x in zip(seeds, xs, strict=True)]
+
+    x = ik.simulate(6000, sample_dt=0.25, random_state=1201)
+    real = x.copy()
+    for t, h in zip((900, 2400, 3700, 5100), (3.4, 4.2, 5.2, 5.8), strict=True):
+        real[t] += h * x.std()
+    smooth = runs(range(1210, 1210 + CALIBRATION_RUNS), False)
+    spiky = runs(range(1240, 1240 + CALIBRATION_RUNS), True)
+    assert jump_test(real, smooth[:6])["p_value"] > RANGE_ALPHA  # six runs cannot tell
+    assert jump_test(real, smooth)["p_value"] < RANGE_ALPHA  # 24 can
+
+    class Problem:  # six runs per candidate, and 24 where the six cannot decide
+        def __init__(self):
+            self.real = real
+            self.asked = []
+
+        def ensemble(self, chain, tier="full"):
+            return (spiky if chain[0][0].name == "outliers" else smooth)[:6]
+
+        def chain_calibration(self, chain):
+            self.asked.append(chain[0][0].name)
+            return spiky if chain[0][0].name == "outliers" else smooth
+
+    table = pd.DataFrame({"effect": ["dynamical_noise", "outliers"], "status": ["ok", "ok"],
+                          "gap_after": [1.0, 4.0], "shrink": [0.8, 0.2],
+                          "params": [{"dynamical_noise": 0.27}, spikes]})
+    by_name = {name: get_effect(name) for name in table["effect"]}
+    problem = Problem()
+    new, _, led = _spike_evidence_first(problem, {"spikes_only": True, "threshold": 6.0},
+                                        table, ["a", "b"], by_name)
+    assert led and list(new["effect"]) == ["outliers", "dynamical_noise"]
+    assert problem.asked[0] == "dynamical_noise"
 
 
 def test_more_runs_are_asked_for_only_where_they_could_make_the_excursions_significant():
@@ -305,6 +359,8 @@ def test_the_jumps_a_hum_leaves_call_for_a_second_effect_whose_runs_make_them():
         def ensemble(self, chain, tier="full"):
             names = [e.name for e, _ in chain]
             return noisy if "measurement_noise" in names else hummed
+
+        chain_calibration = ensemble  # as many runs as the ensemble: the same verdicts
 
     by_name = {name: get_effect(name) for name in
                ("periodic_interference", "lowpass", "measurement_noise")}

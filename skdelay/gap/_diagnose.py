@@ -26,7 +26,7 @@ from ._indicators import Spectrum
 from ._lines import CALIBRATION_RUNS, F_ALPHA, continuum_rise, line_scan, without_lines
 from ._observation import Outliers
 from ._problem import GapProblem
-from ._range import RANGE_ALPHA, excursion_tests, jump_test, range_test
+from ._range import RANGE_ALPHA, excursion_tests
 from ._report import GapReport
 from ._signature import mean_std, pile_ups
 from ._units import parse_sample_dt
@@ -539,9 +539,24 @@ def _dip_evidence_first(problem, sig, table, evaluations, by_name):
 SPIKE_TRIES = 3
 
 
-def _excursions_off(real, runs):
-    """Does ``real`` leave the range of ``runs``, or their jumps' range, beyond chance?"""
-    return bool(range_test(real, runs)["off"] or jump_test(real, runs)["off"])
+def _excursions_off(problem, chain, runs):
+    """Does the record leave the range of ``runs`` (simulator + ``chain``), or their jumps'
+    range, beyond chance?
+
+    Judged as the significance test judged the record against the clean runs
+    (:func:`~skdelay.gap._range.excursion_tests`): where the ``runs`` cannot decide, against
+    ``CALIBRATION_RUNS`` runs of simulator + ``chain``.  Six runs cannot rule out a rate of
+    0.5 excursions per record, so a record with a few spikes passes against the runs of any
+    candidate, even the clean simulator's.  Ikeda (step 0.25, 6000 samples, four spikes of
+    3.4-5.8 std; held-out benchmark seed 23.8e6): the four jumps beyond the clean range made
+    the record significant against 24 runs (p = 9e-6), and dynamical noise of 0.27 std, whose
+    runs jump at most 1.3 std off their neighbours against the record's 6.5, "settled" them
+    against its six runs and was named instead of the outliers.
+    """
+    beyond, jumps, _ = excursion_tests(problem.real, runs,
+                                       lambda: problem.chain_calibration(chain),
+                                       CALIBRATION_RUNS)
+    return bool(beyond["off"] or jumps["off"])
 
 
 def _spike_evidence_first(problem, sig, table, evaluations, by_name):
@@ -570,11 +585,12 @@ def _spike_evidence_first(problem, sig, table, evaluations, by_name):
         if tried == SPIKE_TRIES:
             break
         tried += 1
+        candidate = [(by_name[row["effect"]], dict(row["params"]))]
         try:
-            runs = problem.ensemble([(by_name[row["effect"]], dict(row["params"]))], "full")
+            off = _excursions_off(problem, candidate, problem.ensemble(candidate, "full"))
         except CandidateFailed:
             continue
-        if _excursions_off(problem.real, runs):
+        if off:
             continue
         return (*_row_first(table, evaluations, i), True)
     return table, evaluations, False
@@ -598,10 +614,9 @@ def _excursions_left(problem, sig, chain):
                          or sig.get("jumps_p", 1.0) < RANGE_ALPHA):
         return False
     try:
-        runs = problem.ensemble(chain, "full")
+        return _excursions_off(problem, chain, problem.ensemble(chain, "full"))
     except CandidateFailed:
         return False
-    return _excursions_off(problem.real, runs)
 
 
 def _settling_rows(problem, chain, table, evaluations, by_name):
@@ -617,12 +632,12 @@ def _settling_rows(problem, chain, table, evaluations, by_name):
         if tried == SPIKE_TRIES:
             break
         tried += 1
+        pair = chain + [(by_name[row["effect"]], dict(row["params"]))]
         try:
-            runs = problem.ensemble(chain + [(by_name[row["effect"]], dict(row["params"]))],
-                                    "full")
+            off = _excursions_off(problem, pair, problem.ensemble(pair, "full"))
         except CandidateFailed:
             continue
-        if not _excursions_off(problem.real, runs):
+        if not off:
             out.add(i)
     return out
 
@@ -1122,11 +1137,12 @@ def _fold(effect, parts, f, chain):
     cross-validation (CO2 laser with a hum, 2 workers, cProfile of the main process).
     """
     fit, score = FOLDS[f]
-    res = fit_effect(effect, parts[fit], [(c, p[fit]) for c, p in chain], False)
+    beneath = [(c, p[fit]) for c, p in chain]
+    res = fit_effect(effect, parts[fit], beneath, False)
     applies = bool(res.applicable and _applies(effect, parts[score]))
     if not (applies and res.ok):
         return res, applies, np.nan
-    moved = [(e, _moved(e, p[fit], parts, fit, score)) for e, p in chain]
+    moved = [(e, _moved(e, p, parts, fit, score)) for e, p in beneath]
     moved.append((effect, _moved(effect, res.params, parts, fit, score)))
     try:
         return res, applies, float(parts[score].evaluate(moved, "full").gap)

@@ -465,6 +465,22 @@ class GapProblem:
         runs = self.calibration_runs()[len(self.base):len(self.base) + k]
         return self._observed(runs, chain, first=len(self.base))
 
+    def chain_calibration(self, chain):
+        """``CALIBRATION_RUNS`` runs of simulator + ``chain``: its :meth:`ensemble` and, beyond
+        it, the calibration runs' seeds (:meth:`calibration_runs`, those of the clean
+        calibration runs: the two differ by the chain alone), simulated with the chain's
+        simulation effects and recorded through its observation effects.  What the tests of
+        narrow discrepancies ask of a candidate where its six runs cannot decide
+        (:func:`~skdelay.gap._diagnose._excursions_off`)."""
+        k = max(CALIBRATION_RUNS - len(self.base), 0)
+        overrides = self._overrides(chain)
+        if not overrides:
+            return self.ensemble(chain, "full") + self.calibration_ensemble(chain, k)
+        seeds = self._calibration_seeds()[:k]
+        runs = [self.run_cache.run(self.simulator, self.n_samples, self.sample_dt, s, overrides)
+                for s in seeds]
+        return self.ensemble(chain, "full") + self._observed(runs, chain, first=len(self.base))
+
     def _calibration_seeds(self):
         """Seeds of the calibration runs (:meth:`_line_runs`), from the first run's seed: the
         problem's random stream, and with it every other draw, stays as it is."""
