@@ -549,8 +549,7 @@ def test_a_hum_under_a_lowpass_is_cross_validated_with_the_lowpass_refitted_bene
         get_effect("periodic_interference").apply(x, hum, sample_dt=dt), {"cutoff": 0.068},
         sample_dt=dt)
     rep = diagnose_gap(real, ik, sample_dt=dt, random_state=1, n_jobs=2,
-                       effects=["lowpass", "periodic_interference", "dynamical_noise",
-                                "measurement_noise"])
+                       effects=["lowpass", "periodic_interference", "dynamical_noise"])
     assert _found(rep) == ["lowpass", "periodic_interference"], rep.effects
     assert rep.explained == "fully"
     fitted = dict(zip(rep.combined["effects"], rep.combined["params"], strict=True))
