@@ -487,6 +487,27 @@ def test_spikes_all_in_one_half_leave_the_outliers_untested_not_failed(seed, at,
     assert row["shrink"] == row["shrink_fit"] > 0.9
 
 
+def test_two_spikes_are_counted_and_measured_not_searched():
+    """Two spikes (5 and 7 std) are read off the record: rate 2 / n and their median
+    height.  Before, fewer than four detected spikes were searched from a default start,
+    and the search matched the record's two with about eight smaller ones (benchmark
+    seed 23.9e6, Mackey-Glass at step 0.5: rate 3.8 x and size 0.45 x the realised)."""
+    from skdelay.gap import Outliers
+
+    x = MG.simulate(6000, random_state=7110)
+    real = x.copy()
+    real[[1700, 4100]] += np.array([5.0, -7.0]) * x.std()
+    guess = Outliers().guess(real, MG.simulate(6000, random_state=1)[None], 1.0)
+    assert guess["detected"] and guess["measured"]
+    assert guess["rate"] == pytest.approx(2 / 6000)
+    rep = diagnose_gap(real, MG, random_state=3, n_jobs=1,
+                       effects=["outliers", "measurement_noise", "dynamical_noise"])
+    assert rep.best_effect == "outliers", rep.effects[["effect", "shrink", "status"]]
+    fit = rep.effects.set_index("effect").loc["outliers", "params"]
+    assert fit["rate"] == pytest.approx(2 / 6000)
+    assert fit["size"] == pytest.approx(6.0, rel=0.2)
+
+
 def test_a_clipped_end_reached_in_one_half_only_leaves_the_clipping_untested():
     """The electro-optic oscillator reaches its lowest values in the first half only
     (record seed 26): clipped just above the second half's minimum, its 40 piled-up
@@ -564,7 +585,7 @@ def test_halves_score_the_spikes_counted_on_the_whole_record():
     problem = GapProblem(real, MG, n_sims=3, random_state=1)
     first, second = problem.split()
     out = Outliers()
-    assert out.counted(problem) and not out.counted(first) and out.counted(second)
+    assert out.counted(problem) and out.counted(first) and out.counted(second)  # 1 and 4
     whole = SimpleNamespace(effect="outliers", ok=True, params={"rate": 5 / 6000, "size": 4.9})
     pin_choices((first, second), [whole])  # without the whole record: nothing counted
     assert "outliers" not in first.pinned
@@ -620,7 +641,9 @@ def test_a_rough_half_without_the_counted_spikes_cannot_test_them():
                        effects=["outliers", "measurement_noise", "dynamical_noise"])
     assert rep.best_effect == "outliers", rep.effects[["effect", "shrink", "status"]]
     row = rep.effects.set_index("effect").loc["outliers"]
-    assert not row["cross_validated"] and row["shrink"] == row["shrink_fit"] > 0.8
+    # 0.80 (0.88 while the runs drew a Poisson count of spikes: its scatter widened the
+    # spread the record is judged against)
+    assert not row["cross_validated"] and row["shrink"] == row["shrink_fit"] > 0.75
 
 
 def test_a_half_searches_the_delay_near_the_whole_records():

@@ -288,7 +288,7 @@ def test_more_runs_are_asked_for_only_where_they_could_make_the_excursions_signi
 
 
 def test_a_few_large_spikes_are_judged_against_the_calibration_runs():
-    """Ikeda (step 0.5, 6000 samples) with three spikes of 3-9 std: each leaves the runs'
+    """Ikeda (step 0.5, 6000 samples) with three spikes of 7-9 std: each leaves the runs'
     range and jump range, but six clean runs only bound the runs' own excursion rate at 0.5
     per record (p = 0.046 and 0.014), the gap (1.5) lies far under its threshold (8.9), and
     the record read "no gap".  The 18 calibration runs that the line scan draws
@@ -296,8 +296,8 @@ def test_a_few_large_spikes_are_judged_against_the_calibration_runs():
     record at step 0.25 (seed 22.3e6, six spikes) read "no gap" the same way."""
     ik = Ikeda()
     x = ik.simulate(6000, sample_dt=0.5, random_state=951)
-    real = get_effect("outliers").apply(x, {"rate": 0.0005, "size": 6.0}, sample_dt=0.5,
-                                        random_state=957)
+    real = x.copy()
+    real[[24, 1166, 5996]] += np.array([8.99, -7.33, 7.113]) * x.std()
     rep = diagnose_gap(real, ik, sample_dt=0.5, random_state=953, n_jobs=2,
                        effects=["outliers", "measurement_noise", "clipping"])
     s = rep.significance
