@@ -505,7 +505,8 @@ class Outliers(Effect):
         # below measurement noise.  Runs now hold the count (:meth:`apply`); on 18 records
         # of 1-3 spikes (Mackey-Glass, Ikeda, electro-optic, two steps each, 6000 samples)
         # the same 11 were read as outliers, with the rate and size within 20 % of the
-        # realised ones on 10 instead of 1 (median error 0.08 against 5.9 tolerances).
+        # realised ones on 10 instead of 1 (median error 0.08 against 5.9 tolerances;
+        # benchmarks/gap_few_spikes.py).
         # every height (size * U(0.5, 1.5)) clears the threshold (see search_bounds)
         measured = bool(cut < 0.5 * size)
         rate, size = self.unbiased(rate, size, cut, found["upper"])
