@@ -10,7 +10,7 @@ the spectral centroid (time base).
 from __future__ import annotations
 
 import numpy as np
-from scipy import optimize, signal
+from scipy import ndimage, optimize, signal
 
 
 def mean_std(x):
@@ -160,7 +160,8 @@ def spikes(real, sims, *, threshold=1.25, details=False):
     A sample is a spike when its deviation from the 5-point running median is
     larger than ``threshold`` times the largest deviation seen in the clean
     simulations (so the dynamics' own sharp features do not count) and than
-    half a standard deviation.
+    half a standard deviation, and it is the largest deviation within two samples
+    (the median's window: a spike's neighbours deviate too).
     ``details=True`` returns a dict with ``rate``, ``size``, the detection
     threshold ``cut`` and the 95th percentile ``upper`` of the detected
     heights (units of ``size``): spikes below ``cut`` are missed, which biases
@@ -172,7 +173,13 @@ def spikes(real, sims, *, threshold=1.25, details=False):
     ref = [np.abs(zscore(s) - _running_median(zscore(s), 5)) for s in np.atleast_2d(sims)[:2]]
     scale = max(float(np.max(np.concatenate(ref))), 1e-6) * x.std()
     cut = max(threshold * scale, 0.5 * x.std())
-    hits = dev > cut
+    # A spike also moves the running median of its four neighbours (by about one local
+    # increment), and on a steep signal that shadow can clear the threshold: only the
+    # largest deviation within the median's window counts.  Electro-optic oscillator at
+    # step 0.25 (benchmarks/gap_few_spikes.py): two spikes of 3.2 and 4.5 std cast three
+    # shadows of 0.72-0.80 std beside a threshold of 0.67, and the rate read 5 / 6000.
+    # (Two spikes within two samples of each other count as one.)
+    hits = (dev > cut) & (dev >= ndimage.maximum_filter1d(dev, size=5, mode="nearest"))
     if not np.any(hits):
         out = {"rate": 0.0, "size": 0.0, "cut": float(cut / x.std()), "upper": 0.0}
         return out if details else (0.0, 0.0)
