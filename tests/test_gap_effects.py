@@ -111,6 +111,10 @@ def test_outliers_hit_a_fixed_count_of_samples_so_runs_differ_only_in_where_and_
               for r in range(200)]
     assert set(counts) == {2, 3}
     assert np.mean(counts) == pytest.approx(2.5, abs=0.15)  # the expected fraction stays the rate
+    for bad in ({"rate": np.nan, "size": 6.0}, {"rate": -0.1, "size": 6.0},
+                {"rate": 2.0, "size": 6.0}, {"rate": 0.01, "size": np.inf}):
+        with pytest.raises(ValueError, match="0 <= rate <= 1"):
+            out.apply(x, bad, random_state=0)
 
 
 def test_quantization_grid_and_guess():

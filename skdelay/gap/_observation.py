@@ -567,14 +567,18 @@ class Outliers(Effect):
         2-3 spikes was compared with runs holding anywhere from none to six, and that
         scatter, not the parameters, decided the gap.
         """
+        rate, size = float(params["rate"]), float(params["size"])
+        if not (0.0 <= rate <= 1.0 and np.isfinite(size)):
+            raise ValueError(f"outliers need 0 <= rate <= 1 (a fraction of the samples) and a "
+                             f"finite size (signal std), got rate={params['rate']!r}, "
+                             f"size={params['size']!r}.")
         x = np.array(x, dtype=float)
         rng = _rng(random_state)
-        expected = min(max(float(params["rate"]), 0.0), 1.0) * x.size
+        expected = rate * x.size
         k = int(expected)
         k += int(rng.random() < expected - k)
         hit = rng.choice(x.size, size=min(k, x.size), replace=False)
-        height = params["size"] * rng.uniform(0.5, 1.5, hit.size) * rng.choice([-1.0, 1.0],
-                                                                             hit.size)
+        height = size * rng.uniform(0.5, 1.5, hit.size) * rng.choice([-1.0, 1.0], hit.size)
         x[hit] += height * x.std()
         return x
 
