@@ -20,6 +20,7 @@ from ._signature import (
     quantization_step,
     roll_off,
     spectral_line,
+    spike_efficiency,
     spikes,
     white_floor,
     zscore,
@@ -509,28 +510,33 @@ class Outliers(Effect):
         # benchmarks/gap_few_spikes.py).
         # every height (size * U(0.5, 1.5)) clears the threshold (see search_bounds)
         measured = bool(cut < 0.5 * size)
-        rate, size = self.unbiased(rate, size, cut, found["upper"])
+        size = self.unbiased_size(size, cut, found["upper"])
+        # The spikes missed are put back by the fraction the detector finds in the clean
+        # runs at this size.  The share of heights above the threshold (1.5 - cut / size)
+        # ignored the roughness that hides some of them: 24 records per system (17 or 40
+        # spikes of 3-6 std, 6000 samples) had their rate within 20 % on 67 % of the
+        # rough Ikeda records at step 0.5 (median 0.86 of the realised), 79 % (0.93)
+        # this way, and 0.92 -> 0.95 over six systems and steps (stop 82 note).
+        rate = rate / max(spike_efficiency(sim, size, cut), 1e-3)
         return {"rate": _clamp(rate, self.bounds["rate"]),
                 "size": _clamp(size, self.bounds["size"]),
                 "detected": True, "measured": measured}
 
     @staticmethod
-    def unbiased(rate, median_height, cut, upper):
-        """Rate and size of this effect's spikes from the detected ones.
+    def unbiased_size(median_height, cut, upper):
+        """Size of this effect's spikes from the detected ones.
 
         Heights are ``size * U(0.5, 1.5)``; only those above the detection
         threshold ``cut`` are seen.  When ``cut > 0.5 size`` the detected
-        heights are uniform on ``[cut, 1.5 size]``, so their 95th percentile
-        ``upper`` gives ``size`` (the upper end is not smeared by the noise at
-        the threshold, unlike the median) and a fraction ``1.5 - cut / size``
-        of the spikes is seen.
+        heights are about uniform on ``[cut, 1.5 size]``, so their 95th
+        percentile ``upper`` gives ``size`` (the upper end is not smeared by the
+        noise at the threshold, unlike the median); otherwise every height clears
+        the threshold and their median is the size.
         """
         if not (np.isfinite(cut) and cut > 0.5 * median_height):
-            return rate, median_height
+            return median_height
         size = (cut + (upper - cut) / 0.95) / 1.5
-        if not cut / 1.5 < size < 2.0 * cut:
-            return rate, median_height
-        return rate / (1.5 - cut / size), size
+        return size if cut / 1.5 < size < 2.0 * cut else median_height
 
     def search_bounds(self, guess, context):
         r, s = guess["rate"], guess["size"]

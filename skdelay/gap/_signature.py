@@ -173,13 +173,7 @@ def spikes(real, sims, *, threshold=1.25, details=False):
     ref = [np.abs(zscore(s) - _running_median(zscore(s), 5)) for s in np.atleast_2d(sims)[:2]]
     scale = max(float(np.max(np.concatenate(ref))), 1e-6) * x.std()
     cut = max(threshold * scale, 0.5 * x.std())
-    # A spike also moves the running median of its four neighbours (by about one local
-    # increment), and on a steep signal that shadow can clear the threshold: only the
-    # largest deviation within the median's window counts.  Electro-optic oscillator at
-    # step 0.25 (benchmarks/gap_few_spikes.py): two spikes of 3.2 and 4.5 std cast three
-    # shadows of 0.72-0.80 std beside a threshold of 0.67, and the rate read 5 / 6000.
-    # (Two spikes within two samples of each other count as one.)
-    hits = (dev > cut) & (dev >= ndimage.maximum_filter1d(dev, size=5, mode="nearest"))
+    hits = _spike_hits(dev, cut)
     if not np.any(hits):
         out = {"rate": 0.0, "size": 0.0, "cut": float(cut / x.std()), "upper": 0.0}
         return out if details else (0.0, 0.0)
@@ -188,6 +182,54 @@ def spikes(real, sims, *, threshold=1.25, details=False):
            "cut": float(cut / clean_std),
            "upper": float(np.quantile(dev[hits], 0.95) / clean_std)}
     return out if details else (out["rate"], out["size"])
+
+
+def _spike_hits(dev, cut):
+    """Which samples :func:`spikes` counts, given their deviations from the running median.
+
+    A spike also moves the running median of its four neighbours (by about one local
+    increment), and on a steep signal that shadow can clear the threshold: only the
+    largest deviation within the median's window counts.  Electro-optic oscillator at
+    step 0.25 (benchmarks/gap_few_spikes.py): two spikes of 3.2 and 4.5 std cast three
+    shadows of 0.72-0.80 std beside a threshold of 0.67, and the rate read 5 / 6000.
+    (Two spikes within two samples of each other count as one.)
+    """
+    return (dev > cut) & (dev >= ndimage.maximum_filter1d(dev, size=5, mode="nearest"))
+
+
+#: Spacing (samples) of the spikes :func:`spike_efficiency` injects: wider than the
+#: running median's window and the local-maximum rule (5 samples), so no injected spike
+#: shadows another.
+_INJECT_EVERY = 12
+
+
+def spike_efficiency(sims, size, cut):
+    """Fraction of spikes of height ``size * U(0.5, 1.5)`` (signal std, random sign)
+    that :func:`spikes` finds at the threshold ``cut`` (the same units): measured by
+    adding them to the clean runs ``sims`` and detecting them there.
+
+    Where the signal is rough the deviation from the running median is the spike's
+    height plus the signal's own deviation, so heights above ``cut`` are missed and
+    heights below it are found: the fraction seen is not the share of heights above
+    the threshold.  The runs have that roughness; the injection is deterministic
+    (evenly spread heights, alternating signs, every :data:`_INJECT_EVERY` samples).
+    """
+    size, cut = float(size), float(cut)
+    seen = total = 0
+    for s in np.atleast_2d(sims)[:2]:
+        z = zscore(s)
+        at = np.arange(_INJECT_EVERY // 2, z.size - _INJECT_EVERY // 2, _INJECT_EVERY)
+        if at.size == 0:
+            continue
+        # heights spread evenly over U(0.5, 1.5) in a scrambled order (golden-ratio steps)
+        u = 0.5 + (np.arange(at.size) * 0.6180339887498949) % 1.0
+        sign = np.where(np.arange(at.size) % 2 == 0, 1.0, -1.0)
+        y = z.copy()
+        y[at] += size * u * sign
+        dev = np.abs(y - _running_median(y, 5))
+        seen += int(np.count_nonzero(_spike_hits(dev, cut)[at]))
+        total += at.size
+    return seen / total if total else 1.0
 
 
 def white_floor(real, sims, sample_dt, nperseg=1024):
