@@ -30,17 +30,15 @@ import pandas as pd
 from joblib import Parallel, delayed
 
 from skdelay.gap import get_effect
-from skdelay.systems import ElectroOpticOscillator, Ikeda, MackeyGlass
 
+# the systems and steps of the few-spike benchmark, and the withheld-effect benchmark's
+# record maker (gap_few_spikes.G)
 _SPEC = importlib.util.spec_from_file_location(
-    "gap_withheld", Path(__file__).resolve().parent / "gap_withheld.py")
-G = importlib.util.module_from_spec(_SPEC)
-_SPEC.loader.exec_module(G)
-
-SYSTEMS = {"mackey_glass@1": (MackeyGlass(), 1.0), "mackey_glass@0.5": (MackeyGlass(), 0.5),
-           "ikeda@0.5": (Ikeda(), 0.5), "ikeda@0.25": (Ikeda(), 0.25),
-           "electro_optic@0.25": (ElectroOpticOscillator(), 0.25),
-           "electro_optic@0.5": (ElectroOpticOscillator(), 0.5)}
+    "gap_few_spikes", Path(__file__).resolve().parent / "gap_few_spikes.py")
+FEW = importlib.util.module_from_spec(_SPEC)
+_SPEC.loader.exec_module(FEW)
+G = FEW.G
+SYSTEMS = {f"{label}@{dt:g}": (system, dt) for label, system, dt in FEW.SYSTEMS}
 
 
 def one(label, count, size, seed, n):
